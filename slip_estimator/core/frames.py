@@ -1,0 +1,143 @@
+"""Frame conventions and rotation helpers. The one place where frames are converted.
+
+Conventions of the estimation core (Groves 2013 notation):
+
+* ``i`` inertial, ``e`` planet-centred planet-fixed, ``n`` local-level navigation frame with
+  NED axes (north, east, down), ``b`` body frame with FRD axes (forward, right, down).
+* ``C_b_n`` is the direction-cosine matrix that takes a vector resolved in b to n
+  (``v_n = C_b_n @ v_b``); ``v_eb_n`` is the velocity of b w.r.t. e resolved in n;
+  ``omega_ib_b`` the angular rate of b w.r.t. i resolved in b.
+* Quaternions are (w, x, y, z), Hamilton, ``q_nb_wxyz`` rotates b vectors into n.
+
+ROS conventions at the boundary (REP-103/105/145): ``base_link`` is FLU, ``odom`` is ENU. The
+core body frame b is base_link rotated by 180 deg about x; the IMU frame is given by its pose in
+base_link (``imu_to_base_rpy``, the static transform base_link -> imu_link).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+# FLU <-> FRD and ENU <-> NED are involutions (each matrix is its own inverse and transpose).
+C_FLU_FRD = np.diag([1.0, -1.0, -1.0])
+"""Takes a vector resolved in an FLU frame to the FRD frame with the same x axis (and back)."""
+C_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+"""Takes a vector resolved in ENU to NED (and back)."""
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Skew-symmetric matrix ``[v x]`` such that ``skew(a) @ b == cross(a, b)``."""
+    x, y, z = v
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+
+
+def rot_x(a: float) -> np.ndarray:
+    """Active rotation matrix about x by ``a`` rad."""
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_y(a: float) -> np.ndarray:
+    """Active rotation matrix about y by ``a`` rad."""
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_z(a: float) -> np.ndarray:
+    """Active rotation matrix about z by ``a`` rad."""
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rpy_to_dcm(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """DCM of the child frame in the parent frame from roll, pitch, yaw (ROS / tf convention).
+
+    ``R = Rz(yaw) Ry(pitch) Rx(roll)``; it takes child-frame vectors to the parent frame. With
+    NED/FRD frames the same formula gives Groves' ``C_b_n`` from his Euler angles (eq. 2.22).
+    """
+    return rot_z(yaw) @ rot_y(pitch) @ rot_x(roll)
+
+
+def dcm_to_rpy(C: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw (rad) of a DCM built as in :func:`rpy_to_dcm` (paper eq. 25)."""
+    roll = math.atan2(C[2, 1], C[2, 2])
+    pitch = -math.asin(max(-1.0, min(1.0, C[2, 0])))
+    yaw = math.atan2(C[1, 0], C[0, 0])
+    return np.array([roll, pitch, yaw])
+
+
+def rotvec_to_dcm(phi: np.ndarray) -> np.ndarray:
+    """Rodrigues: DCM of the rotation vector ``phi`` (rad), ``exp([phi x])``."""
+    angle = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    K = skew(phi)
+    if angle < 1e-8:
+        return np.eye(3) + K + 0.5 * K @ K
+    return (np.eye(3) + (math.sin(angle) / angle) * K
+            + ((1.0 - math.cos(angle)) / (angle * angle)) * K @ K)
+
+
+def orthonormalize(C: np.ndarray) -> np.ndarray:
+    """Nearest rotation matrix (SVD), removes numerical drift of an integrated DCM."""
+    u, _, vt = np.linalg.svd(C)
+    R = u @ vt
+    if np.linalg.det(R) < 0.0:
+        u[:, -1] *= -1.0
+        R = u @ vt
+    return R
+
+
+def dcm_to_quat_wxyz(C: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w, x, y, z), w >= 0, of a rotation matrix (Shepperd's method)."""
+    tr = C[0, 0] + C[1, 1] + C[2, 2]
+    if tr > 0.0:
+        s = 2.0 * math.sqrt(1.0 + tr)
+        q = np.array([0.25 * s, (C[2, 1] - C[1, 2]) / s, (C[0, 2] - C[2, 0]) / s,
+                      (C[1, 0] - C[0, 1]) / s])
+    elif C[0, 0] > C[1, 1] and C[0, 0] > C[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + C[0, 0] - C[1, 1] - C[2, 2])
+        q = np.array([(C[2, 1] - C[1, 2]) / s, 0.25 * s, (C[0, 1] + C[1, 0]) / s,
+                      (C[0, 2] + C[2, 0]) / s])
+    elif C[1, 1] > C[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + C[1, 1] - C[0, 0] - C[2, 2])
+        q = np.array([(C[0, 2] - C[2, 0]) / s, (C[0, 1] + C[1, 0]) / s, 0.25 * s,
+                      (C[1, 2] + C[2, 1]) / s])
+    else:
+        s = 2.0 * math.sqrt(1.0 + C[2, 2] - C[0, 0] - C[1, 1])
+        q = np.array([(C[1, 0] - C[0, 1]) / s, (C[0, 2] + C[2, 0]) / s,
+                      (C[1, 2] + C[2, 1]) / s, 0.25 * s])
+    q /= np.linalg.norm(q)
+    return q if q[0] >= 0.0 else -q
+
+
+def quat_wxyz_to_dcm(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a quaternion (w, x, y, z); normalises the input."""
+    w, x, y, z = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def imu_to_body_dcm(imu_to_base_rpy: np.ndarray | list[float]) -> np.ndarray:
+    """``C_imu_b``: takes IMU-frame vectors to the core body frame b (FRD).
+
+    ``imu_to_base_rpy`` is the orientation of imu_link in base_link (static transform
+    base_link -> imu_link), so ``C_imu_base = rpy_to_dcm(*rpy)`` and b is base_link in FRD.
+    """
+    return C_FLU_FRD @ rpy_to_dcm(*imu_to_base_rpy)
+
+
+def body_ned_to_base_enu(C_b_n: np.ndarray) -> np.ndarray:
+    """``C_base_odom`` (FLU in ENU) from the core attitude ``C_b_n`` (FRD in NED)."""
+    return C_ENU_NED @ C_b_n @ C_FLU_FRD
+
+
+def base_enu_to_body_ned(C_base_enu: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`body_ned_to_base_enu`: ``C_b_n`` from base_link's attitude in ENU."""
+    return C_ENU_NED @ C_base_enu @ C_FLU_FRD
+
+
+def heading_to_yaw_enu(heading_deg: float) -> float:
+    """ROS yaw (rad, counter-clockwise from east) of a heading (deg, clockwise from north)."""
+    return math.pi / 2.0 - math.radians(heading_deg)

@@ -1,0 +1,175 @@
+"""The one parameter schema of the estimator and node.
+
+Every parameter is a field of :class:`Params` with a unit, a one-line description and an allowed
+range. ``config/slip_estimator.yaml`` mirrors it key for key (a test checks that), the ROS node
+declares its parameters from it and the bag replay reads the same YAML.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+PLANETS = ('earth', 'mars', 'moon')
+WHEEL_INPUTS = ('odometry', 'joint_states')
+
+
+class ParameterError(ValueError):
+    """An invalid parameter value; the message names the parameter and its allowed range."""
+
+
+def _p(default: Any, unit: str, doc: str, lo: float | None = None, hi: float | None = None,
+       choices: tuple[str, ...] | None = None, length: int | None = None) -> Any:
+    meta = {'unit': unit, 'doc': doc, 'lo': lo, 'hi': hi, 'choices': choices, 'length': length}
+    if isinstance(default, list):
+        return field(default_factory=lambda: list(default), metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class Params:
+    """Estimator and node parameters (SI units; names end with their unit where it helps)."""
+
+    # --- rover geometry and wheel input -------------------------------------------------------
+    wheel_radius: float = _p(0.12, 'm', 'effective rolling radius of the wheels', 0.01, 5.0)
+    track_width: float = _p(0.685, 'm', 'lateral distance between left and right wheel centres',
+                            0.05, 10.0)
+    wheel_input: str = _p('joint_states', '', 'wheel source: odometry (/wheel/odometry) or '
+                          'joint_states (/joint_states)', choices=WHEEL_INPUTS)
+    wheel_joint_names: list = _p(
+        ['front_left_wheel_joint', 'front_right_wheel_joint',
+         'rear_left_wheel_joint', 'rear_right_wheel_joint'], '',
+        'JointState names of the driven wheels; the side is taken from "left"/"right" in the name')
+    max_wheel_speed_mps: float = _p(5.0, 'm/s', 'rim speeds above this are rejected as absurd',
+                                    0.1, 100.0)
+    # --- IMU mounting: pose of imu_link in base_link (as a static transform base_link->imu) -----
+    imu_to_base_rpy: list = _p([0.0, 0.0, 0.0], 'rad', 'roll, pitch, yaw of the IMU frame in '
+                               'base_link', -math.pi, math.pi, length=3)
+    imu_to_base_xyz: list = _p([0.0, 0.0, 0.0], 'm', 'position of the IMU in base_link',
+                               -10.0, 10.0, length=3)
+    # --- initial pose --------------------------------------------------------------------------
+    initial_latitude_deg: float = _p(39.65, 'deg', 'geodetic latitude at start', -89.0, 89.0)
+    initial_longitude_deg: float = _p(-79.95, 'deg', 'longitude at start', -180.0, 180.0)
+    initial_height_m: float = _p(300.0, 'm', 'ellipsoidal height at start', -1.0e4, 1.0e5)
+    initial_heading_deg: float = _p(0.0, 'deg', 'heading of base_link x, clockwise from true '
+                                    'north', -360.0, 360.0)
+    planet: str = _p('earth', '', 'planet model (shape, rotation, gravity)', choices=PLANETS)
+    # --- IMU noise model (Groves 2013 sec. 4.4, 14.2.6) -----------------------------------------
+    accel_noise_density: float = _p(2.0e-3, 'm/s^2/sqrt(Hz)', 'accelerometer white noise '
+                                    '(velocity random walk)', 1e-6, 1.0)
+    gyro_noise_density: float = _p(2.0e-4, 'rad/s/sqrt(Hz)', 'gyro white noise (angle random '
+                                   'walk)', 1e-7, 0.1)
+    accel_bias_psd: float = _p(1.0e-7, 'm^2/s^5', 'accelerometer bias variation PSD S_bad',
+                               0.0, 1.0)
+    gyro_bias_psd: float = _p(1.0e-11, 'rad^2/s^3', 'gyro bias variation PSD S_bgd', 0.0, 1.0)
+    initial_accel_bias_std: float = _p(0.05, 'm/s^2', 'initial accelerometer bias 1-sigma',
+                                       1e-6, 10.0)
+    initial_gyro_bias_std: float = _p(5.0e-3, 'rad/s', 'initial gyro bias 1-sigma', 1e-7, 1.0)
+    initial_attitude_std: float = _p(0.01, 'rad', 'initial roll/pitch 1-sigma after alignment',
+                                     1e-6, 1.0)
+    initial_heading_std: float = _p(0.05, 'rad', 'initial heading 1-sigma', 1e-6, 3.2)
+    initial_velocity_std: float = _p(0.01, 'm/s', 'initial velocity 1-sigma', 1e-6, 10.0)
+    # --- pseudo-measurements --------------------------------------------------------------------
+    zupt_velocity_std: float = _p(0.01, 'm/s', 'ZUPT measurement 1-sigma', 1e-5, 1.0)
+    zaru_rate_std: float = _p(1.0e-3, 'rad/s', 'ZARU measurement 1-sigma', 1e-7, 0.1)
+    nhc_lateral_std: float = _p(0.05, 'm/s', 'non-holonomic lateral velocity 1-sigma', 1e-4, 2.0)
+    nhc_vertical_std: float = _p(0.03, 'm/s', 'non-holonomic vertical velocity 1-sigma', 1e-4,
+                                 2.0)
+    innovation_gate_probability: float = _p(0.9999, '', 'chi-square gate probability for '
+                                            'pseudo-measurements (1 disables the gate)', 0.9, 1.0)
+    # --- detectors --------------------------------------------------------------------------------
+    stationary_window_s: float = _p(0.5, 's', 'IMU window of the stationarity detector', 0.05,
+                                    10.0)
+    stationary_wheel_speed_mps: float = _p(0.005, 'm/s', 'all wheels below this rim speed count '
+                                           'as stopped', 0.0, 1.0)
+    stationary_accel_std: float = _p(0.05, 'm/s^2', 'max accelerometer-norm std in the window '
+                                     'when stationary', 1e-4, 10.0)
+    stationary_gyro_std: float = _p(0.01, 'rad/s', 'max gyro std per axis in the window when '
+                                    'stationary', 1e-6, 1.0)
+    turn_rate_threshold: float = _p(0.25, 'rad/s', 'above this yaw rate the lateral '
+                                    'non-holonomic constraint is suspended (skid-steer turn)',
+                                    0.0, 10.0)
+    alignment_duration_s: float = _p(2.0, 's', 'stationary time used for initial alignment',
+                                     0.1, 600.0)
+    # --- slip ---------------------------------------------------------------------------------------
+    wheel_speed_std: float = _p(0.01, 'm/s', 'rim-speed measurement 1-sigma', 0.0, 1.0)
+    moving_speed_threshold: float = _p(0.02, 'm/s', 'below this rim and body speed the rover '
+                                       'is "not moving" (slip class 0)', 0.0, 1.0)
+    max_wheel_latency_s: float = _p(0.5, 's', 'wheel samples older than the filter by more than '
+                                    'this are dropped', 0.01, 10.0)
+    wheel_timeout_s: float = _p(0.5, 's', 'without wheel data for this long slip is STALE',
+                                0.05, 60.0)
+    # --- output ---------------------------------------------------------------------------------------
+    odometry_rate_hz: float = _p(50.0, 'Hz', 'rate of /slip_estimator/odometry (0 = every IMU '
+                                 'sample)', 0.0, 1000.0)
+    diagnostics_period_s: float = _p(1.0, 's', 'period of /diagnostics (data time)', 0.1, 60.0)
+    odom_frame: str = _p('odom', '', 'frame_id of the odometry output')
+    base_frame: str = _p('base_link', '', 'child_frame_id of the odometry output')
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            _validate(f, getattr(self, f.name))
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any], *, ignore_unknown: bool = False) -> Params:
+        """Build from a flat mapping; unknown keys raise unless ``ignore_unknown``."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - names)
+        if unknown and not ignore_unknown:
+            raise ParameterError(f'unknown parameter(s): {", ".join(unknown)}')
+        return cls(**{k: v for k, v in values.items() if k in names})
+
+    def to_dict(self) -> dict[str, Any]:
+        """Flat mapping of every parameter."""
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    def replace(self, **changes: Any) -> Params:
+        """A copy with some fields changed (validated)."""
+        return dataclasses.replace(self, **changes)
+
+
+def describe(name: str) -> str:
+    """One-line description of a parameter with its unit and allowed range."""
+    f = {f.name: f for f in dataclasses.fields(Params)}[name]
+    m = f.metadata
+    rng = ''
+    if m['choices']:
+        rng = f' one of {"|".join(m["choices"])}'
+    elif m['lo'] is not None:
+        rng = f' in [{m["lo"]}, {m["hi"]}]'
+    unit = f' [{m["unit"]}]' if m['unit'] else ''
+    return f'{m["doc"]}{unit}{rng}'
+
+
+def _validate(f: dataclasses.Field, value: Any) -> None:
+    m = f.metadata
+    name = f.name
+    if m['choices'] is not None:
+        if value not in m['choices']:
+            raise ParameterError(f'parameter {name}={value!r}: must be one of '
+                                 f'{", ".join(m["choices"])}')
+        return
+    if isinstance(f.default, str) or f.type == 'str':
+        if not isinstance(value, str) or not value:
+            raise ParameterError(f'parameter {name}={value!r}: must be a non-empty string')
+        return
+    if m['length'] is not None or isinstance(value, (list, tuple)):
+        if not isinstance(value, (list, tuple)):
+            raise ParameterError(f'parameter {name}={value!r}: must be a list')
+        if m['length'] is not None and len(value) != m['length']:
+            raise ParameterError(f'parameter {name}={value!r}: must have {m["length"]} elements')
+        items = value
+    else:
+        items = [value]
+    for v in items:
+        if m['lo'] is None:
+            if not isinstance(v, str) or not v:
+                raise ParameterError(f'parameter {name}: elements must be non-empty strings')
+            continue
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ParameterError(f'parameter {name}={value!r}: must be a finite number in '
+                                 f'[{m["lo"]}, {m["hi"]}] {m["unit"]}')
+        if not m['lo'] <= v <= m['hi']:
+            raise ParameterError(f'parameter {name}={value!r}: out of range, allowed '
+                                 f'[{m["lo"]}, {m["hi"]}] {m["unit"]}')

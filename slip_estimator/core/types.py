@@ -1,0 +1,130 @@
+"""Plain records exchanged between the ROS/bag boundary and the estimation core.
+
+Frames (see :mod:`slip_estimator.core.frames` for the full convention):
+
+* ``b``  -- the rover body frame in Groves' FRD convention (x forward, y right, z down),
+  co-located with the IMU. ``base_link`` (ROS FLU) differs by a 180 deg roll.
+* ``n``  -- local-level navigation frame, NED (north, east, down).
+* ``o``  -- ROS ``odom`` frame: ENU axes, origin at the initial base_link position.
+
+Everything here is SI. Times are integer nanoseconds (``stamp_ns``), as at the ROS boundary.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+SLIP_CLASS_NAMES = ('none', 'low', 'medium', 'high', 'extreme')
+"""Slip classes by index: 0 none (rover not moving), 1 low 0<|s|<=0.2, 2 medium <=0.4,
+3 high <=0.7, 4 extreme <=1.0."""
+
+SLIP_CLASS_UPPER_BOUNDS = (0.2, 0.4, 0.7)
+"""Upper |s| bounds of classes low, medium and high; anything larger is extreme."""
+
+
+@dataclass(frozen=True, slots=True)
+class ImuSample:
+    """One IMU sample, already rotated into the body frame ``b`` (FRD).
+
+    Attributes
+    ----------
+    stamp_ns : sample time, ns.
+    f_ib_b : specific force of b w.r.t. inertial space, resolved in b, m/s^2 (at rest on a level
+        surface approximately (0, 0, -g) in FRD).
+    omega_ib_b : angular rate of b w.r.t. inertial space, resolved in b, rad/s.
+    """
+
+    stamp_ns: int
+    f_ib_b: np.ndarray
+    omega_ib_b: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class WheelSample:
+    """One wheel-encoder sample, reduced to rim speeds.
+
+    Attributes
+    ----------
+    stamp_ns : sample time, ns.
+    rim_speed_mps : mean forward rim speed r*omega of all wheels, m/s (forward positive).
+    rim_speed_left_mps, rim_speed_right_mps : mean rim speed of the left / right wheels, m/s,
+        or None when the side is unknown.
+    """
+
+    stamp_ns: int
+    rim_speed_mps: float
+    rim_speed_left_mps: float | None = None
+    rim_speed_right_mps: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class SlipEstimate:
+    """Slip at one wheel sample time (paper eq. 1, 29).
+
+    Attributes
+    ----------
+    stamp_ns : the wheel sample time the estimate refers to, ns.
+    slip_ratio : s in [-1, 1]; NaN when unknown (then ``slip_class`` is -1).
+    slip_ratio_std : 1-sigma of s from the filter velocity covariance and wheel noise.
+    slip_class : 0..4, index into SLIP_CLASS_NAMES, or -1 when unknown.
+    body_speed_mps : forward body velocity v_x at the wheel contact point, from the INS, m/s.
+    body_speed_std_mps : its 1-sigma, m/s.
+    wheel_speed_mps : rim speed r*omega, m/s.
+    slip_ratio_left, slip_ratio_right : per-side slip when the sides are known, else None.
+    """
+
+    stamp_ns: int
+    slip_ratio: float
+    slip_ratio_std: float
+    slip_class: int
+    body_speed_mps: float
+    body_speed_std_mps: float
+    wheel_speed_mps: float
+    slip_ratio_left: float | None = None
+    slip_ratio_right: float | None = None
+
+    @property
+    def class_name(self) -> str:
+        """Class name, or 'unknown'."""
+        return SLIP_CLASS_NAMES[self.slip_class] if self.slip_class >= 0 else 'unknown'
+
+
+@dataclass(frozen=True, slots=True)
+class OdometryEstimate:
+    """Fused pose and twist of base_link in the ROS odom frame (REP-103/105 conventions).
+
+    Attributes
+    ----------
+    stamp_ns : time of the IMU sample this solution belongs to, ns.
+    p_ob_o : base_link position in odom (ENU axes, origin at the start), m.
+    q_ob_wxyz : orientation of base_link (FLU) in odom (ENU), unit quaternion (w, x, y, z).
+    v_ob_b : base_link linear velocity resolved in base_link (FLU), m/s.
+    omega_ob_b : base_link angular velocity resolved in base_link (FLU), rad/s.
+    pose_covariance : 6x6, order (x, y, z, rot_x, rot_y, rot_z) in odom, m^2 / rad^2.
+    twist_covariance : 6x6, order (vx, vy, vz, wx, wy, wz) in base_link.
+    """
+
+    stamp_ns: int
+    p_ob_o: np.ndarray
+    q_ob_wxyz: np.ndarray
+    v_ob_b: np.ndarray
+    omega_ob_b: np.ndarray
+    pose_covariance: np.ndarray
+    twist_covariance: np.ndarray
+
+
+@dataclass(frozen=True, slots=True)
+class Health:
+    """Self-diagnosis of the estimator for ``/diagnostics``.
+
+    Attributes
+    ----------
+    level : 0 OK, 1 WARN, 2 ERROR (diagnostic_msgs/DiagnosticStatus levels).
+    message : one-line summary (state and any suspected fault).
+    values : named figures (rates, counters, NIS statistics, bias estimates), already SI.
+    """
+
+    level: int
+    message: str
+    values: dict
