@@ -36,3 +36,34 @@ def save_params(params: Params, path: str | Path, node_name: str = NODE_NAME) ->
     """Write params as a ROS 2 params file loadable with ``--ros-args --params-file``."""
     Path(path).write_text(yaml.safe_dump({node_name: {'ros__parameters': params.to_dict()}},
                                          sort_keys=False))
+
+
+def _yaml_value(value: Any) -> str:
+    if isinstance(value, list):
+        return '[' + ', '.join(_yaml_value(v) for v in value) + ']'
+    if isinstance(value, float):
+        text = repr(value)
+        # YAML 1.1 (PyYAML, rcl) reads "1e-07" as a string: keep a mantissa dot.
+        if 'e' in text and '.' not in text.split('e')[0]:
+            mantissa, exponent = text.split('e')
+            text = f'{mantissa}.0e{exponent}'
+        return text
+    if isinstance(value, str):
+        return f'"{value}"'
+    return str(value)
+
+
+def render_default_config() -> str:
+    """The text of ``config/slip_estimator.yaml``: every parameter, its default and a comment."""
+    import dataclasses
+
+    from slip_estimator.core.params import describe
+
+    defaults = Params()
+    lines = ['# slip_estimator parameters: mirrors slip_estimator/core/params.py key for key',
+             '# (regenerate with `slip-estimator default-config > config/slip_estimator.yaml`).',
+             f'{NODE_NAME}:', '  ros__parameters:']
+    for f in dataclasses.fields(Params):
+        lines.append(f'    # {describe(f.name)}')
+        lines.append(f'    {f.name}: {_yaml_value(getattr(defaults, f.name))}')
+    return '\n'.join(lines) + '\n'
