@@ -1,0 +1,81 @@
+"""Kalman filter steps with textbook names (paper eq. 13, 15-16, 28).
+
+Copy-in / return-out: the functions never modify their inputs. The covariance update uses the
+Joseph form (paper eq. 28 prints the short form, which loses symmetry and positive
+definiteness in floating point) and the gain comes from ``solve``, not an explicit inverse.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Chi-square quantiles for the innovation gate: {dof: {probability: threshold}} (no scipy).
+_CHI2 = {
+    1: {0.9: 2.706, 0.95: 3.841, 0.99: 6.635, 0.999: 10.828, 0.9999: 15.137},
+    2: {0.9: 4.605, 0.95: 5.991, 0.99: 9.210, 0.999: 13.816, 0.9999: 18.421},
+    3: {0.9: 6.251, 0.95: 7.815, 0.99: 11.345, 0.999: 16.266, 0.9999: 21.108},
+}
+
+
+def chi2_threshold(dof: int, probability: float) -> float:
+    """Gate threshold for ``dof`` degrees of freedom; ``probability >= 1`` disables the gate.
+
+    Uses the tabulated quantile at the largest tabulated probability not above ``probability``.
+    """
+    if probability >= 1.0:
+        return float('inf')
+    table = _CHI2[dof]
+    keys = [p for p in sorted(table) if p <= probability + 1e-12]
+    return table[keys[-1]] if keys else table[min(table)]
+
+
+@dataclass(frozen=True, slots=True)
+class UpdateRecord:
+    """What one measurement update did: for diagnostics, consistency tests and residual studies.
+
+    Attributes
+    ----------
+    name : measurement model name.
+    innovation : z - h(x), measurement units.
+    S : innovation covariance.
+    nis : normalised innovation squared ``innovation^T S^-1 innovation``.
+    accepted : False when the chi-square gate rejected the update.
+    """
+
+    name: str
+    innovation: np.ndarray
+    S: np.ndarray
+    nis: float
+    accepted: bool
+
+
+def symmetrize(P: np.ndarray) -> np.ndarray:
+    """``(P + P^T) / 2``."""
+    return 0.5 * (P + P.T)
+
+
+def predict(P: np.ndarray, Phi: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """Covariance propagation ``Phi P Phi^T + Q`` (eq. 13); the error state itself is zero
+    between updates in a closed-loop filter, so only P is propagated."""
+    return symmetrize(Phi @ P @ Phi.T + Q)
+
+
+def update(P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
+           gate: float = float('inf'), name: str = '') -> tuple[np.ndarray, np.ndarray,
+                                                                   UpdateRecord]:
+    """Error-state measurement update.
+
+    Returns the error-state estimate ``dx`` (zero when gated out), the updated covariance and
+    the update record.
+    """
+    PHt = P @ H.T
+    S = symmetrize(H @ PHt + R)
+    nis = float(innovation @ np.linalg.solve(S, innovation))
+    if not nis <= gate:  # also rejects NaN
+        return np.zeros(P.shape[0]), P, UpdateRecord(name, innovation, S, nis, False)
+    K = np.linalg.solve(S, PHt.T).T
+    dx = K @ innovation
+    IKH = np.eye(P.shape[0]) - K @ H
+    P_new = symmetrize(IKH @ P @ IKH.T + K @ R @ K.T)
+    return dx, P_new, UpdateRecord(name, innovation, S, nis, True)

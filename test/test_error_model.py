@@ -1,0 +1,97 @@
+"""The error-state model against finite differences of the nonlinear mechanization and
+measurement functions (Groves' F and our H must describe what the code actually does)."""
+import math
+
+import numpy as np
+import pytest
+
+from slip_estimator.core.error_model import process_noise, system_matrix
+from slip_estimator.core.frames import rpy_to_dcm
+from slip_estimator.core.mechanization import mechanize
+from slip_estimator.core.measurements import NonHolonomic, ZeroAngularRate, ZeroVelocity
+from slip_estimator.core.planet import EARTH, MARS
+from slip_estimator.core.state import N_ERR, NavState, correct, difference
+
+# Error-state scales: rad, m/s, (rad, rad, m), m/s^2, rad/s.
+SCALE = np.array([1e-3] * 3 + [1e-2] * 3 + [1e-7, 1e-7, 1e-1] + [1e-2] * 3 + [1e-3] * 3)
+
+
+def nominal_state(planet=EARTH) -> NavState:
+    return NavState(rpy_to_dcm(0.1, -0.2, 2.0), np.array([0.6, -0.4, 0.05]),
+                    np.array([math.radians(39.6), math.radians(-79.9), 310.0]),
+                    np.array([0.01, -0.02, 0.03]), np.array([1e-3, -2e-3, 5e-4]))
+
+
+BLOCKS = [slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)]
+
+
+@pytest.mark.parametrize('planet', [EARTH, MARS])
+@pytest.mark.parametrize('src', range(5))
+def test_system_matrix_matches_finite_difference_of_mechanization(planet, src):
+    """Perturb one error block at a time; every block of F (also the tiny transport-rate
+    terms) must predict the error growth of two mechanizations that differ by that error."""
+    rng = np.random.default_rng(src)
+    f_meas = np.array([0.3, -0.2, -planet.g_equator_mps2])
+    w_meas = np.array([0.02, -0.01, 0.3])
+    tau = 1e-3
+    est = nominal_state(planet)
+    f_n = est.C_b_n @ (f_meas - est.b_a)
+    F = system_matrix(est, f_n, planet)
+    dx0 = np.zeros(N_ERR)
+    dx0[BLOCKS[src]] = rng.standard_normal(3) * SCALE[BLOCKS[src]] * 1e-2
+    truth = correct(est.copy(), dx0)
+    assert np.allclose(difference(est, truth), dx0, rtol=1e-6, atol=1e-18)
+    est1, truth1 = est.copy(), truth.copy()
+    mechanize(est1, f_meas, w_meas, tau, planet)
+    mechanize(truth1, f_meas, w_meas, tau, planet)
+    dxdot = (difference(est1, truth1) - dx0) / tau
+    expected = F @ dx0
+    for dst in BLOCKS:
+        scale = np.abs(expected[dst]).max()
+        # Allowed: 3 % of the block, the O(tau) discretisation term tau/2 F^2 dx, and the
+        # numerical resolution of the finite difference.
+        second_order = np.abs(tau * (F @ F @ dx0)[dst]).max()
+        floor = 1e-9 * SCALE[dst].max()
+        assert np.allclose(dxdot[dst], expected[dst], rtol=0,
+                           atol=0.03 * scale + second_order + floor), (
+            dst, dxdot[dst], expected[dst])
+
+
+def _check_jacobian(model_innovation, H, est, rng):
+    z0 = model_innovation(est)
+    for _ in range(5):
+        dx = rng.standard_normal(N_ERR) * SCALE * 1e-3
+        truth = correct(est.copy(), dx)
+        # innovation(est) - innovation(truth) = h(truth) - h(est) ~ H dx
+        lhs = z0 - model_innovation(truth)
+        assert np.allclose(lhs, H @ dx, rtol=1e-3, atol=1e-3 * np.abs(H @ dx).max())
+
+
+def test_zupt_jacobian():
+    est = nominal_state()
+    _check_jacobian(ZeroVelocity().innovation, ZeroVelocity().jacobian(est), est,
+                    np.random.default_rng(2))
+
+
+def test_zaru_jacobian():
+    est = nominal_state()
+    m = ZeroAngularRate(EARTH)
+    w = np.array([1e-4, -2e-4, 3e-5])
+    _check_jacobian(lambda s: m.innovation(s, w), m.jacobian(est), est, np.random.default_rng(3))
+
+
+@pytest.mark.parametrize('rows', [(1, 2), (2,)])
+def test_nhc_jacobian_with_lever_arm(rows):
+    est = nominal_state()
+    m = NonHolonomic(EARTH, np.array([-0.2, 0.1, 0.3]))
+    w = np.array([0.05, -0.02, 0.4])
+    _check_jacobian(lambda s: m.innovation(s, w, rows), m.jacobian(est, rows), est,
+                    np.random.default_rng(4))
+
+
+def test_process_noise_is_symmetric_positive_semidefinite():
+    est = nominal_state()
+    F = system_matrix(est, np.array([0.1, 0.2, -9.8]), EARTH)
+    Q = process_noise(est, F, 0.02, 4e-8, 4e-6, 1e-7, 1e-11, EARTH)
+    assert np.allclose(Q, Q.T, atol=0)
+    assert np.linalg.eigvalsh(Q).min() > -1e-20
