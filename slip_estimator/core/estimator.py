@@ -1,11 +1,40 @@
 """The estimator facade: IMU and wheel samples in, odometry, slip and health out.
 
-(API fixed first; the implementation follows.)
+Processing steps for each IMU sample (numbered as in the code):
+
+1. validate the sample and its time step;
+2. before alignment: collect a stationary window, then align (roll/pitch from the specific
+   force, gyro bias from the mean rate minus the planet rate, heading and position from the
+   parameters);
+3. strapdown mechanization at the full IMU rate;
+4. covariance propagation every ``covariance_decimation`` samples over the accumulated
+   interval (second-order Phi; ``covariance_decimation = 1`` is the reference path);
+5. at ``update_rate_hz``: detectors decide, then ZUPT + ZARU (stationary) or the
+   non-holonomic constraint (moving; vertical only while turning), chi-square gated;
+6. slip for every wheel sample the filter has reached, from the body velocity at the wheel
+   sample time. Wheel speeds never enter the filter, so slip is not pulled towards zero.
 """
 from __future__ import annotations
 
+import math
+from collections import deque
+
+import numpy as np
+
+from slip_estimator.core import frames, kalman
+from slip_estimator.core.error_model import (curvilinear_to_ned, process_noise, system_matrix)
+from slip_estimator.core.detectors import StationaryDetector, TurnDetector
+from slip_estimator.core.measurements import NonHolonomic, ZeroAngularRate, ZeroVelocity
+from slip_estimator.core.mechanization import mechanize
 from slip_estimator.core.params import Params
-from slip_estimator.core.types import Health, ImuSample, OdometryEstimate, SlipEstimate, WheelSample
+from slip_estimator.core.planet import PLANETS, earth_rate_n, llh_to_local_enu
+from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
+from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
+from slip_estimator.core.types import (Health, ImuSample, OdometryEstimate, SlipEstimate,
+                                       WheelSample)
+
+_NS = 1_000_000_000
+_HISTORY_S = 2.0
 
 
 class SlipEstimator:
@@ -18,19 +47,373 @@ class SlipEstimator:
 
     def __init__(self, params: Params) -> None:
         self.params = params
+        self.planet = PLANETS[params.planet]
+        p = params
+        # Lever arm IMU -> base_link origin (the wheel-contact centre), body frame b.
+        r_imu_b = frames.C_FLU_FRD @ np.asarray(p.imu_to_base_xyz, dtype=float)
+        self.l_bw_b = -r_imu_b
+        self.zupt = ZeroVelocity()
+        self.zaru = ZeroAngularRate(self.planet)
+        self.nhc = NonHolonomic(self.planet, self.l_bw_b)
+        self.turn = TurnDetector(p.turn_rate_threshold)
+        self._gate = {k: kalman.chi2_threshold(k, p.innovation_gate_probability)
+                      for k in (1, 2, 3)}
+        self._S = (p.gyro_noise_density ** 2, p.accel_noise_density ** 2, p.accel_bias_psd,
+                   p.gyro_bias_psd)
+        self._reset_filter()
 
+    # ------------------------------------------------------------------ lifecycle
+    def _reset_filter(self) -> None:
+        p = self.params
+        self.state: NavState | None = None
+        self.P = np.zeros((N_ERR, N_ERR))
+        self.stamp_ns: int | None = None
+        self._nominal_dt = 1.0 / 250.0
+        self.stationary = StationaryDetector(
+            max(2, int(round(p.stationary_window_s * 250.0))), p.stationary_accel_std,
+            p.stationary_gyro_std, p.stationary_wheel_speed_mps, int(p.wheel_timeout_s * _NS))
+        self._align_rows: list[np.ndarray] = []
+        self._acc_tau = 0.0
+        self._acc_f_n = np.zeros(3)
+        self._acc_n = 0
+        self._next_update_ns: int | None = None
+        self._since_update = np.zeros(3)
+        self._since_update_n = 0
+        self._omega_ib_b = np.zeros(3)
+        self._llh0: np.ndarray | None = None
+        self._history: deque = deque()
+        self._pending: deque = deque()
+        self._last_wheel_ns: int | None = None
+        self._last_stale_ns: int | None = None
+        self.is_stationary = False
+        self.is_turning = False
+        self.counters: dict[str, int] = {
+            'imu_samples': 0, 'imu_rejected': 0, 'imu_gaps': 0, 'wheel_samples': 0,
+            'wheel_rejected': 0, 'wheel_late': 0, 'zupt': 0, 'zaru': 0, 'nhc': 0,
+            'gated': 0, 'resets': 0, 'slip_estimates': 0, 'slip_unknown': 0}
+        self.nis_mean = {'zupt': float('nan'), 'zaru': float('nan'), 'nhc': float('nan')}
+        self.last_records: list[kalman.UpdateRecord] = []
+
+    @property
+    def aligned(self) -> bool:
+        """True once the initial alignment is done and the filter runs."""
+        return self.state is not None
+
+    # ------------------------------------------------------------------ inputs
     def add_imu(self, sample: ImuSample) -> list[SlipEstimate]:
         """Process one IMU sample; return slip estimates that became due."""
-        raise NotImplementedError
+        # 1. validate
+        f_b, w_b = sample.f_ib_b, sample.omega_ib_b
+        if not (np.all(np.isfinite(f_b)) and np.all(np.isfinite(w_b))):
+            self.counters['imu_rejected'] += 1
+            return []
+        if self.stamp_ns is not None and sample.stamp_ns <= self.stamp_ns:
+            self.counters['imu_rejected'] += 1
+            return []
+        self.counters['imu_samples'] += 1
+        prev_ns, self.stamp_ns = self.stamp_ns, sample.stamp_ns
+        self._omega_ib_b = w_b
+        self.stationary.add_imu(f_b, w_b)
+        if prev_ns is None:
+            return self._slip_before_alignment()
+        dt = (sample.stamp_ns - prev_ns) * 1e-9
+        if dt > self.params.max_imu_gap_s:
+            self.counters['imu_gaps'] += 1
+        else:
+            self._nominal_dt = 0.99 * self._nominal_dt + 0.01 * dt
+        # 2. alignment
+        if self.state is None:
+            self._collect_alignment(f_b, w_b, sample.stamp_ns)
+            return self._slip_before_alignment()
+        # 3. mechanization
+        f_n = mechanize(self.state, f_b, w_b, dt, self.planet)
+        self._acc_tau += dt
+        self._acc_f_n += f_n * dt
+        self._acc_n += 1
+        self._since_update += w_b
+        self._since_update_n += 1
+        # 4. covariance propagation (decimated)
+        if self._acc_n >= self.params.covariance_decimation:
+            self._propagate_covariance()
+        # 5. pseudo-measurements
+        if sample.stamp_ns >= self._next_update_ns:
+            self._pseudo_measurements(sample.stamp_ns)
+        self._record_history(sample.stamp_ns, w_b)
+        # 6. slip
+        return self._due_slip()
 
     def add_wheel(self, sample: WheelSample) -> list[SlipEstimate]:
         """Process one wheel sample; return slip estimates that became due."""
-        raise NotImplementedError
+        speeds = [v for v in (sample.rim_speed_mps, sample.rim_speed_left_mps,
+                              sample.rim_speed_right_mps) if v is not None]
+        if not all(math.isfinite(v) and abs(v) <= self.params.max_wheel_speed_mps
+                   for v in speeds):
+            self.counters['wheel_rejected'] += 1
+            return []
+        if self._last_wheel_ns is not None and sample.stamp_ns <= self._last_wheel_ns:
+            self.counters['wheel_rejected'] += 1
+            return []
+        self.counters['wheel_samples'] += 1
+        self._last_wheel_ns = sample.stamp_ns
+        self._last_stale_ns = None
+        self.stationary.add_wheel(sample.stamp_ns, max(abs(v) for v in speeds))
+        self._pending.append(sample)
+        if self.state is None:
+            return self._slip_before_alignment()
+        return self._due_slip()
+
+    # ------------------------------------------------------------------ alignment
+    def _collect_alignment(self, f_b: np.ndarray, w_b: np.ndarray, stamp_ns: int) -> None:
+        p = self.params
+        if not self.stationary.is_stationary(stamp_ns):
+            self._align_rows.clear()
+            return
+        self._align_rows.append(np.concatenate([f_b, w_b]))
+        if len(self._align_rows) * self._nominal_dt >= p.alignment_duration_s:
+            self._align(np.array(self._align_rows), stamp_ns)
+
+    def _align(self, rows: np.ndarray, stamp_ns: int) -> None:
+        """Static alignment (Groves sec. 5.6.2): levelling from the mean specific force."""
+        p = self.params
+        f = rows[:, :3].mean(axis=0)
+        w = rows[:, 3:].mean(axis=0)
+        roll = math.atan2(-f[1], -f[2])
+        pitch = math.atan2(f[0], math.hypot(f[1], f[2]))
+        C_b_n = frames.rpy_to_dcm(roll, pitch, math.radians(p.initial_heading_deg))
+        llh = np.array([math.radians(p.initial_latitude_deg),
+                        math.radians(p.initial_longitude_deg), p.initial_height_m])
+        # Position of the IMU; the parameters give base_link's.
+        r_imu_b = -self.l_bw_b
+        llh = llh - curvilinear_to_ned(self.planet, llh[0], llh[2]) @ (-(C_b_n @ r_imu_b))
+        b_g = w - C_b_n.T @ earth_rate_n(self.planet, llh[0])
+        self.state = NavState(C_b_n, np.zeros(3), llh, np.zeros(3), b_g)
+        # Base_link position at alignment: the origin of odom.
+        self._llh0 = self._base_llh()
+        self.P = self._initial_covariance(f)
+        self._next_update_ns = stamp_ns
+        self._align_rows = []
+
+    def _initial_covariance(self, f_b: np.ndarray) -> np.ndarray:
+        """Initial P. Levelling absorbs the horizontal accelerometer bias into roll/pitch, so
+        the tilt error equals ``-C b_a / g`` (Groves eq. 5.103); P carries that correlation,
+        otherwise the first acceleration is mistaken for a tilt change."""
+        p = self.params
+        g = float(np.linalg.norm(f_b))
+        T = curvilinear_to_ned(self.planet, self.state.llh[0], self.state.llh[2])
+        d = np.zeros(N_ERR)
+        d[ATT] = [p.initial_attitude_std ** 2, p.initial_attitude_std ** 2,
+                  p.initial_heading_std ** 2]
+        d[VEL] = p.initial_velocity_std ** 2
+        d[POS] = (np.diag(T) * 0.01) ** 2
+        d[BA] = p.initial_accel_bias_std ** 2
+        d[BG] = p.initial_gyro_bias_std ** 2
+        J = np.eye(N_ERR)
+        C = self.state.C_b_n
+        J[0, BA] = -C[1] / g
+        J[1, BA] = C[0] / g
+        return J @ np.diag(d) @ J.T
+
+    # ------------------------------------------------------------------ filter steps
+    def _propagate_covariance(self) -> None:
+        if self._acc_n == 0:
+            return
+        tau = self._acc_tau
+        F = system_matrix(self.state, self._acc_f_n / tau, self.planet)
+        Ft = F * tau
+        Phi = np.eye(N_ERR) + Ft + 0.5 * (Ft @ Ft)
+        Q = process_noise(self.state, F, tau, *self._S, self.planet)
+        self.P = kalman.predict(self.P, Phi, Q)
+        self.state.C_b_n = frames.orthonormalize(self.state.C_b_n)
+        self._acc_tau = 0.0
+        self._acc_f_n = np.zeros(3)
+        self._acc_n = 0
+
+    def _apply(self, name: str, innovation: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
+        dx, self.P, rec = kalman.update(self.P, innovation, H, R, self._gate[len(innovation)],
+                                        name)
+        self.last_records.append(rec)
+        prev = self.nis_mean[name]
+        self.nis_mean[name] = rec.nis if math.isnan(prev) else 0.98 * prev + 0.02 * rec.nis
+        if rec.accepted:
+            self.counters[name] += 1
+            correct(self.state, dx)
+        else:
+            self.counters['gated'] += 1
+
+    def _pseudo_measurements(self, stamp_ns: int) -> None:
+        p = self.params
+        self._propagate_covariance()
+        self.last_records = []
+        self._next_update_ns = stamp_ns + int(_NS / p.update_rate_hz)
+        w_mean = self._since_update / max(1, self._since_update_n)
+        period = max(1, self._since_update_n) * self._nominal_dt
+        self._since_update = np.zeros(3)
+        self._since_update_n = 0
+        self.is_stationary = self.stationary.is_stationary(stamp_ns)
+        w_nb_b = w_mean - self.state.b_g
+        self.is_turning = self.turn.is_turning(w_nb_b, self.state.C_b_n)
+        if self.is_stationary:
+            self._apply('zupt', self.zupt.innovation(self.state), self.zupt.jacobian(self.state),
+                        np.eye(3) * p.zupt_velocity_std ** 2)
+            r = p.zaru_rate_std ** 2 + p.gyro_noise_density ** 2 / period
+            self._apply('zaru', self.zaru.innovation(self.state, w_mean),
+                        self.zaru.jacobian(self.state), np.eye(3) * r)
+        else:
+            rows = (2,) if self.is_turning else (1, 2)
+            sig = {1: p.nhc_lateral_std, 2: p.nhc_vertical_std}
+            R = np.diag([sig[r] ** 2 for r in rows])
+            self._apply('nhc', self.nhc.innovation(self.state, w_mean, rows),
+                        self.nhc.jacobian(self.state, rows), R)
+
+    # ------------------------------------------------------------------ slip
+    def _base_velocity_b(self, omega_ib_b: np.ndarray) -> np.ndarray:
+        """Velocity of base_link's origin resolved in b (FRD), m/s."""
+        return self.nhc.point_velocity_b(self.state, omega_ib_b)
+
+    def _record_history(self, stamp_ns: int, w_b: np.ndarray) -> None:
+        v_b = self._base_velocity_b(w_b)
+        yaw_rate_b = float(w_b[2] - self.state.b_g[2])
+        self._history.append((stamp_ns, float(v_b[0]), yaw_rate_b))
+        horizon = stamp_ns - int(_HISTORY_S * _NS)
+        while self._history and self._history[0][0] < horizon:
+            self._history.popleft()
+
+    def _history_at(self, stamp_ns: int) -> tuple[float, float] | None:
+        """Forward speed and yaw rate (FRD) at ``stamp_ns`` by linear interpolation."""
+        h = self._history
+        if not h or stamp_ns < h[0][0] or stamp_ns > h[-1][0]:
+            return None
+        lo, hi = 0, len(h) - 1
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if h[mid][0] <= stamp_ns:
+                lo = mid
+            else:
+                hi = mid
+        t0, v0, y0 = h[lo]
+        t1, v1, y1 = h[hi]
+        a = 0.0 if t1 == t0 else (stamp_ns - t0) / (t1 - t0)
+        return v0 + a * (v1 - v0), y0 + a * (y1 - y0)
+
+    def _forward_speed_variance(self) -> float:
+        H = self.nhc.jacobian(self.state, (0,))
+        return float((H @ self.P @ H.T)[0, 0])
+
+    def _due_slip(self) -> list[SlipEstimate]:
+        out: list[SlipEstimate] = []
+        while self._pending and self._pending[0].stamp_ns <= self.stamp_ns:
+            wheel = self._pending.popleft()
+            at = self._history_at(wheel.stamp_ns)
+            if at is None:
+                self.counters['wheel_late'] += 1
+                continue
+            out.append(self._slip(wheel, *at))
+        out.extend(self._stale_check())
+        return out
+
+    def _slip(self, wheel: WheelSample, v_body: float, yaw_rate_b: float) -> SlipEstimate:
+        p = self.params
+        var_v = self._forward_speed_variance()
+        var_w = p.wheel_speed_std ** 2
+        w = wheel.rim_speed_mps
+        moving = abs(w) >= p.moving_speed_threshold or abs(v_body) >= p.moving_speed_threshold
+        s = slip_ratio(v_body, w) if moving else 0.0
+        s_std = slip_ratio_std(v_body, w, var_v, var_w) if moving else 0.0
+        sides = [None, None]
+        if wheel.rim_speed_left_mps is not None and wheel.rim_speed_right_mps is not None \
+                and moving:
+            # FRD yaw rate > 0 turns right: the left track moves faster.
+            half = 0.5 * p.track_width * yaw_rate_b
+            sides = [slip_ratio(v_body + half, wheel.rim_speed_left_mps),
+                     slip_ratio(v_body - half, wheel.rim_speed_right_mps)]
+        self.counters['slip_estimates'] += 1
+        return SlipEstimate(wheel.stamp_ns, s, s_std, slip_class(s, moving), v_body,
+                            math.sqrt(max(var_v, 0.0)), w, sides[0], sides[1])
+
+    def _unknown(self, stamp_ns: int, wheel_speed: float = 0.0) -> SlipEstimate:
+        self.counters['slip_unknown'] += 1
+        return SlipEstimate(stamp_ns, float('nan'), float('nan'), -1, float('nan'),
+                            float('nan'), wheel_speed)
+
+    def _slip_before_alignment(self) -> list[SlipEstimate]:
+        """Before alignment only "not moving" is known (wheels and IMU at rest)."""
+        out = []
+        while self._pending:
+            wheel = self._pending.popleft()
+            if (abs(wheel.rim_speed_mps) < self.params.moving_speed_threshold
+                    and self.stationary.imu_steady()):
+                self.counters['slip_estimates'] += 1
+                out.append(SlipEstimate(wheel.stamp_ns, 0.0, 0.0, 0, 0.0, 0.0,
+                                        wheel.rim_speed_mps))
+            else:
+                out.append(self._unknown(wheel.stamp_ns, wheel.rim_speed_mps))
+        return out
+
+    def _stale_check(self) -> list[SlipEstimate]:
+        """Wheel dropout: report "unknown" once per timeout instead of guessing."""
+        timeout = int(self.params.wheel_timeout_s * _NS)
+        last = self._last_stale_ns if self._last_stale_ns is not None else self._last_wheel_ns
+        if last is None or self.stamp_ns - last <= timeout:
+            return []
+        self._last_stale_ns = self.stamp_ns
+        return [self._unknown(self.stamp_ns)]
+
+    # ------------------------------------------------------------------ outputs
+    def _base_llh(self) -> np.ndarray:
+        r_bw_n = self.state.C_b_n @ self.l_bw_b
+        return self.state.llh + curvilinear_to_ned(self.planet, self.state.llh[0],
+                                                   self.state.llh[2]) @ r_bw_n
 
     def odometry(self) -> OdometryEstimate | None:
-        """Current fused solution, or None before the initial alignment has finished."""
-        raise NotImplementedError
+        """Current fused solution of base_link in odom, or None before alignment."""
+        if self.state is None:
+            return None
+        st = self.state
+        p_o = llh_to_local_enu(self.planet, self._base_llh(), self._llh0)
+        C_base_odom = frames.body_ned_to_base_enu(st.C_b_n)
+        w_b = self._omega_ib_b - st.b_g - st.C_b_n.T @ earth_rate_n(self.planet, st.llh[0])
+        v_b = self._base_velocity_b(self._omega_ib_b)
+        # Covariances: position (curvilinear -> NED m -> ENU), attitude psi (NED -> ENU).
+        T_inv = np.linalg.inv(curvilinear_to_ned(self.planet, st.llh[0], st.llh[2]))
+        A = np.zeros((6, N_ERR))
+        A[0:3, POS] = frames.C_ENU_NED @ T_inv
+        A[3:6, ATT] = frames.C_ENU_NED
+        pose_cov = A @ self.P @ A.T
+        B = np.zeros((6, N_ERR))
+        B[0:3, VEL] = frames.C_FLU_FRD @ st.C_b_n.T
+        B[3:6, BG] = frames.C_FLU_FRD
+        twist_cov = B @ self.P @ B.T
+        twist_cov[3:6, 3:6] += np.eye(3) * self.params.gyro_noise_density ** 2 * 250.0
+        return OdometryEstimate(self.stamp_ns, p_o, frames.dcm_to_quat_wxyz(C_base_odom),
+                                frames.C_FLU_FRD @ v_b, frames.C_FLU_FRD @ w_b,
+                                kalman.symmetrize(pose_cov), kalman.symmetrize(twist_cov))
 
     def health(self) -> Health:
-        """Current self-diagnosis."""
-        raise NotImplementedError
+        """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""
+        values: dict = dict(self.counters)
+        if self.state is None:
+            return Health(1, 'aligning: waiting for a stationary window', values)
+        st = self.state
+        sig = np.sqrt(np.maximum(np.diag(self.P), 0.0))
+        values.update({
+            'stationary': self.is_stationary, 'turning': self.is_turning,
+            'velocity_std_mps': float(np.linalg.norm(sig[VEL])),
+            'heading_std_rad': float(sig[2]),
+            'accel_bias_mps2': [float(x) for x in st.b_a],
+            'gyro_bias_rps': [float(x) for x in st.b_g],
+        })
+        for k, v in self.nis_mean.items():
+            values[f'nis_mean_{k}'] = v
+        level, notes = 0, []
+        dof = {'zupt': 3, 'zaru': 3, 'nhc': 2}
+        for k, v in self.nis_mean.items():
+            if not math.isnan(v) and v > 4.0 * dof[k]:
+                level = 1
+                notes.append(f'{k} residuals {v:.1f}x expected: unmodelled effect suspected')
+        if np.any(np.abs(st.b_g) > 5.0 * self.params.initial_gyro_bias_std):
+            level = 1
+            notes.append('gyro bias estimate beyond 5 sigma of its prior')
+        if np.any(np.abs(st.b_a) > 5.0 * self.params.initial_accel_bias_std):
+            level = 1
+            notes.append('accelerometer bias estimate beyond 5 sigma of its prior')
+        return Health(level, 'running' + (': ' + '; '.join(notes) if notes else ''), values)

@@ -66,16 +66,24 @@ class Params:
     initial_accel_bias_std: float = _p(0.05, 'm/s^2', 'initial accelerometer bias 1-sigma',
                                        1e-6, 10.0)
     initial_gyro_bias_std: float = _p(5.0e-3, 'rad/s', 'initial gyro bias 1-sigma', 1e-7, 1.0)
-    initial_attitude_std: float = _p(0.01, 'rad', 'initial roll/pitch 1-sigma after alignment',
+    initial_attitude_std: float = _p(1e-3, 'rad', 'roll/pitch 1-sigma after alignment, apart '
+                                     'from the part explained by the accelerometer bias',
                                      1e-6, 1.0)
     initial_heading_std: float = _p(0.05, 'rad', 'initial heading 1-sigma', 1e-6, 3.2)
     initial_velocity_std: float = _p(0.01, 'm/s', 'initial velocity 1-sigma', 1e-6, 10.0)
     # --- pseudo-measurements --------------------------------------------------------------------
     zupt_velocity_std: float = _p(0.01, 'm/s', 'ZUPT measurement 1-sigma', 1e-5, 1.0)
-    zaru_rate_std: float = _p(1.0e-3, 'rad/s', 'ZARU measurement 1-sigma', 1e-7, 0.1)
+    zaru_rate_std: float = _p(1.0e-5, 'rad/s', 'ZARU measurement 1-sigma (added to the gyro noise '
+                                  'of the averaging window)', 1e-8, 0.1)
     nhc_lateral_std: float = _p(0.05, 'm/s', 'non-holonomic lateral velocity 1-sigma', 1e-4, 2.0)
     nhc_vertical_std: float = _p(0.03, 'm/s', 'non-holonomic vertical velocity 1-sigma', 1e-4,
                                  2.0)
+    update_rate_hz: float = _p(10.0, 'Hz', 'rate of pseudo-measurement updates (ZUPT, ZARU, '
+                               'non-holonomic)', 0.5, 1000.0)
+    covariance_decimation: int = _p(5, '', 'IMU samples per covariance propagation (1 = every '
+                                    'sample, the reference path)', 1, 50)
+    max_imu_gap_s: float = _p(0.1, 's', 'IMU gaps longer than this are reported; the state is '
+                              'propagated over them with inflated uncertainty', 0.004, 60.0)
     innovation_gate_probability: float = _p(0.9999, '', 'chi-square gate probability for '
                                             'pseudo-measurements (1 disables the gate)', 0.9, 1.0)
     # --- detectors --------------------------------------------------------------------------------
@@ -83,7 +91,7 @@ class Params:
                                     10.0)
     stationary_wheel_speed_mps: float = _p(0.005, 'm/s', 'all wheels below this rim speed count '
                                            'as stopped', 0.0, 1.0)
-    stationary_accel_std: float = _p(0.05, 'm/s^2', 'max accelerometer-norm std in the window '
+    stationary_accel_std: float = _p(0.05, 'm/s^2', 'max accelerometer std per axis in the window '
                                      'when stationary', 1e-4, 10.0)
     stationary_gyro_std: float = _p(0.01, 'rad/s', 'max gyro std per axis in the window when '
                                     'stationary', 1e-6, 1.0)

@@ -1,0 +1,107 @@
+"""Detectors that decide which pseudo-measurements the rover's physics allow right now.
+
+Kept apart from the measurement models (a detector answers "is the rover stationary?", a model
+says what that implies); thresholds are parameters.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+class ImuWindow:
+    """Ring buffer of the most recent IMU samples (body frame), for window statistics."""
+
+    def __init__(self, n_samples: int) -> None:
+        self._buf = np.zeros((max(2, n_samples), 6))
+        self._n = 0
+        self._i = 0
+
+    def add(self, f_ib_b: np.ndarray, omega_ib_b: np.ndarray) -> None:
+        """Append one sample, dropping the oldest when full."""
+        row = self._buf[self._i]
+        row[:3] = f_ib_b
+        row[3:] = omega_ib_b
+        self._i = (self._i + 1) % len(self._buf)
+        self._n = min(self._n + 1, len(self._buf))
+
+    def clear(self) -> None:
+        """Forget all samples."""
+        self._n = 0
+        self._i = 0
+
+    @property
+    def full(self) -> bool:
+        """True once the window holds its nominal number of samples."""
+        return self._n == len(self._buf)
+
+    def samples(self, last: int | None = None) -> np.ndarray:
+        """The newest ``last`` samples (all by default) as rows (f_x, f_y, f_z, w_x, w_y, w_z)."""
+        n = self._n if last is None else min(last, self._n)
+        idx = (self._i - n + np.arange(n)) % len(self._buf)
+        return self._buf[idx]
+
+
+class StationaryDetector:
+    """Stationary when, over a window, the specific force and the gyro rates are steady
+    and every wheel is (nearly) stopped.
+
+    The wheel test makes the detector robust to smooth constant-velocity driving, which an
+    IMU-only test cannot tell from rest; the IMU test keeps a rover whose wheels are blocked
+    but which slides (or is carried) from being declared at rest. Without recent wheel data
+    the IMU test alone decides.
+    """
+
+    def __init__(self, window_samples: int, accel_std_max_mps2: float, gyro_std_max_rps: float,
+                 wheel_speed_max_mps: float, wheel_timeout_ns: int) -> None:
+        self.window = ImuWindow(window_samples)
+        self.accel_std_max_mps2 = accel_std_max_mps2
+        self.gyro_std_max_rps = gyro_std_max_rps
+        self.wheel_speed_max_mps = wheel_speed_max_mps
+        self.wheel_timeout_ns = wheel_timeout_ns
+        self._wheel_stamp_ns: int | None = None
+        self._wheels_stopped = False
+
+    def add_imu(self, f_ib_b: np.ndarray, omega_ib_b: np.ndarray) -> None:
+        """Feed one IMU sample."""
+        self.window.add(f_ib_b, omega_ib_b)
+
+    def add_wheel(self, stamp_ns: int, max_abs_rim_speed_mps: float) -> None:
+        """Feed the largest absolute rim speed of one wheel sample."""
+        self._wheel_stamp_ns = stamp_ns
+        self._wheels_stopped = max_abs_rim_speed_mps <= self.wheel_speed_max_mps
+
+    def wheels_recent(self, now_ns: int) -> bool:
+        """True when a wheel sample arrived within the wheel timeout."""
+        return (self._wheel_stamp_ns is not None
+                and now_ns - self._wheel_stamp_ns <= self.wheel_timeout_ns)
+
+    def imu_steady(self) -> bool:
+        """IMU part of the test (window must be full)."""
+        if not self.window.full:
+            return False
+        # Per-axis spread: the specific-force norm barely changes when the rover starts to
+        # accelerate horizontally (sqrt(g^2 + a^2) ~ g), the axes do.
+        std = self.window.samples().std(axis=0)
+        return bool(std[:3].max() <= self.accel_std_max_mps2
+                    and std[3:].max() <= self.gyro_std_max_rps)
+
+    def is_stationary(self, now_ns: int) -> bool:
+        """The decision at ``now_ns``."""
+        if self.wheels_recent(now_ns) and not self._wheels_stopped:
+            return False
+        return self.imu_steady()
+
+
+class TurnDetector:
+    """A skid-steer turn: |yaw rate| above a threshold. The wheels then slide sideways and the
+    lateral non-holonomic constraint does not hold (Kilic et al. 2022, sec. 3.2)."""
+
+    def __init__(self, yaw_rate_threshold_rps: float) -> None:
+        self.yaw_rate_threshold_rps = yaw_rate_threshold_rps
+
+    def is_turning(self, omega_nb_b: np.ndarray, C_b_n: np.ndarray) -> bool:
+        """Yaw rate = body rate projected on the local vertical."""
+        yaw_rate = float(C_b_n[2] @ omega_nb_b)
+        return math.fabs(yaw_rate) > self.yaw_rate_threshold_rps

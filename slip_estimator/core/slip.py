@@ -1,0 +1,46 @@
+"""Slip ratio, its uncertainty and its class (paper eq. 1 and sec. 5.3)."""
+from __future__ import annotations
+
+import math
+
+from slip_estimator.core.types import SLIP_CLASS_UPPER_BOUNDS
+
+
+def slip_ratio(v_body_mps: float, v_rim_mps: float) -> float:
+    """Longitudinal slip ratio s in [-1, 1] (paper eq. 1).
+
+    ``s = 1 - v/(r w)`` when ``v < r w`` (driving slip, s > 0), ``s = r w / v - 1`` when
+    ``v > r w`` (skid, s < 0), 0 when equal. Reversing is handled by mirroring both speeds
+    (the rover's "forward" is the direction of the wheels); a body moving against its wheels
+    is extreme slip, clamped to +-1.
+    """
+    if v_rim_mps < 0.0 or (v_rim_mps == 0.0 and v_body_mps < 0.0):
+        v_body_mps, v_rim_mps = -v_body_mps, -v_rim_mps
+    if v_body_mps < v_rim_mps:
+        return min(1.0, 1.0 - v_body_mps / v_rim_mps)
+    if v_body_mps > v_rim_mps:
+        return max(-1.0, v_rim_mps / v_body_mps - 1.0)
+    return 0.0
+
+
+def slip_ratio_std(v_body_mps: float, v_rim_mps: float, var_body: float, var_rim: float) -> float:
+    """1-sigma of s by first-order propagation of the body-speed and rim-speed variances."""
+    v, w = abs(v_body_mps), abs(v_rim_mps)
+    if v < w:
+        d_v, d_w = -1.0 / w, v / (w * w)
+    elif v > 0.0:
+        d_v, d_w = -w / (v * v), 1.0 / v
+    else:
+        return 1.0
+    return min(1.0, math.sqrt(d_v * d_v * var_body + d_w * d_w * var_rim))
+
+
+def slip_class(s: float, moving: bool) -> int:
+    """0 none (not moving), 1 low (|s| <= 0.2), 2 medium (<= 0.4), 3 high (<= 0.7), 4 extreme."""
+    if not moving:
+        return 0
+    a = abs(s)
+    for k, upper in enumerate(SLIP_CLASS_UPPER_BOUNDS):
+        if a <= upper:
+            return k + 1
+    return 4

@@ -1,0 +1,37 @@
+"""Slip ratio closed-form cases (paper eq. 1) and classification."""
+import math
+
+import pytest
+
+from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
+
+
+@pytest.mark.parametrize('v, w, expected', [
+    (0.5, 0.5, 0.0),        # rolling without slip
+    (0.35, 0.5, 0.3),       # driving slip: 1 - v/(r w)
+    (0.0, 0.5, 1.0),        # wheels spin, body stopped
+    (0.5, 0.4, -0.2),       # skid: r w / v - 1
+    (0.5, 0.0, -1.0),       # wheels locked, body slides
+    (-0.35, -0.5, 0.3),     # reversing mirrors forward driving
+    (-0.2, 0.5, 1.0),       # body moves against its wheels: clamped extreme
+])
+def test_slip_ratio_closed_form(v, w, expected):
+    assert slip_ratio(v, w) == pytest.approx(expected, abs=1e-12)
+
+
+@pytest.mark.parametrize('s, moving, cls', [
+    (0.0, False, 0), (0.0, True, 1), (0.2, True, 1), (0.2000001, True, 2), (-0.39, True, 2),
+    (0.4, True, 2), (0.55, True, 3), (-0.7, True, 3), (0.71, True, 4), (1.0, True, 4),
+])
+def test_slip_class_boundaries(s, moving, cls):
+    assert slip_class(s, moving) == cls
+
+
+@pytest.mark.parametrize('v, w', [(0.35, 0.5), (0.6, 0.5)])
+def test_slip_std_matches_finite_difference_propagation(v, w):
+    var_v, var_w = 0.01 ** 2, 0.02 ** 2
+    e = 1e-7
+    ds_dv = (slip_ratio(v + e, w) - slip_ratio(v - e, w)) / (2 * e)
+    ds_dw = (slip_ratio(v, w + e) - slip_ratio(v, w - e)) / (2 * e)
+    expected = math.sqrt(ds_dv ** 2 * var_v + ds_dw ** 2 * var_w)
+    assert slip_ratio_std(v, w, var_v, var_w) == pytest.approx(expected, rel=1e-5)
