@@ -295,9 +295,16 @@ class SlipEstimator:
         a = 0.0 if t1 == t0 else (stamp_ns - t0) / (t1 - t0)
         return v0 + a * (v1 - v0), y0 + a * (y1 - y0)
 
+    def covariance(self) -> np.ndarray:
+        """Error-state covariance at the time of the last IMU sample (flushes the decimated
+        propagation)."""
+        if self.state is not None:
+            self._propagate_covariance()
+        return self.P
+
     def _forward_speed_variance(self) -> float:
         H = self.nhc.jacobian(self.state, (0,))
-        return float((H @ self.P @ H.T)[0, 0])
+        return float((H @ self.covariance() @ H.T)[0, 0])
 
     def _due_slip(self) -> list[SlipEstimate]:
         out: list[SlipEstimate] = []
@@ -378,11 +385,12 @@ class SlipEstimator:
         A = np.zeros((6, N_ERR))
         A[0:3, POS] = frames.C_ENU_NED @ T_inv
         A[3:6, ATT] = frames.C_ENU_NED
-        pose_cov = A @ self.P @ A.T
+        P = self.covariance()
+        pose_cov = A @ P @ A.T
         B = np.zeros((6, N_ERR))
         B[0:3, VEL] = frames.C_FLU_FRD @ st.C_b_n.T
         B[3:6, BG] = frames.C_FLU_FRD
-        twist_cov = B @ self.P @ B.T
+        twist_cov = B @ P @ B.T
         twist_cov[3:6, 3:6] += np.eye(3) * self.params.gyro_noise_density ** 2 * 250.0
         return OdometryEstimate(self.stamp_ns, p_o, frames.dcm_to_quat_wxyz(C_base_odom),
                                 frames.C_FLU_FRD @ v_b, frames.C_FLU_FRD @ w_b,

@@ -1,0 +1,256 @@
+"""Write a simulation run to an MCAP rosbag2 bag with real ROS 2 messages, and the sim CLI.
+
+Topics (log time = header stamp, integer ns from ``ScenarioConfig.epoch_ns``):
+
+* ``/imu/data`` sensor_msgs/Imu in ``imu_link`` (REP-145: no orientation,
+  ``orientation_covariance[0] = -1``; rate and acceleration covariances from the noise
+  densities: variance per sample = density^2 * rate).
+* ``/joint_states`` sensor_msgs/JointState: the four wheel joints, position (rad) and
+  velocity (rad/s, forward positive) from the quantised encoder counts.
+* ``/wheel/odometry`` nav_msgs/Odometry ``odom`` -> ``base_link``: linear.x = mean rim speed,
+  angular.z = (v_right - v_left) / track, pose = 2-D wheel dead reckoning.
+* ``/gnss/fix`` sensor_msgs/NavSatFix (DIAGONAL_KNOWN covariance).
+* ``/truth/odometry`` nav_msgs/Odometry of base_link in ``odom`` (ENU at the start), twist in
+  base_link (FLU), at ``rate_truth_hz``.
+* ``/truth/slip`` geometry_msgs/Vector3Stamped at every wheel sample: x = true slip of the
+  mean wheel, y = 0, z = true class index (same layout as ``/slip_estimator/slip_ratio``).
+
+This module imports ROS (through :mod:`slip_estimator.bagio`); the simulator itself does not.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from slip_estimator.sim.rover import SimResult, simulate
+from slip_estimator.sim.scenario import WHEEL_JOINT_NAMES, default_scenario, short_scenario
+
+TOPIC_IMU = '/imu/data'
+TOPIC_JOINTS = '/joint_states'
+TOPIC_WHEEL_ODOM = '/wheel/odometry'
+TOPIC_GNSS = '/gnss/fix'
+TOPIC_TRUTH_ODOM = '/truth/odometry'
+TOPIC_TRUTH_SLIP = '/truth/slip'
+ALL_TOPICS = (TOPIC_IMU, TOPIC_JOINTS, TOPIC_WHEEL_ODOM, TOPIC_GNSS, TOPIC_TRUTH_ODOM,
+              TOPIC_TRUTH_SLIP)
+
+
+def _stamp(msg_header: object, stamp_ns: int) -> None:
+    msg_header.stamp.sec = int(stamp_ns // 1_000_000_000)  # type: ignore[attr-defined]
+    msg_header.stamp.nanosec = int(stamp_ns % 1_000_000_000)  # type: ignore[attr-defined]
+
+
+def _yaw_quat_wxyz(yaw: float) -> tuple[float, float, float, float]:
+    return math.cos(0.5 * yaw), 0.0, 0.0, math.sin(0.5 * yaw)
+
+
+def sim_params(result: SimResult) -> object:
+    """:class:`slip_estimator.core.params.Params` matching the simulated rover and IMU."""
+    from slip_estimator.core.params import Params
+
+    cfg = result.config
+    rover, site, imu = cfg.rover, cfg.site, cfg.imu
+    return Params(
+        wheel_radius=rover.wheel_radius_m, track_width=rover.track_width_m,
+        wheel_input='joint_states', wheel_joint_names=list(WHEEL_JOINT_NAMES),
+        imu_to_base_rpy=[float(a) for a in rover.imu_to_base_rpy_rad],
+        imu_to_base_xyz=[float(a) for a in rover.imu_to_base_xyz_m],
+        initial_latitude_deg=site.latitude_deg, initial_longitude_deg=site.longitude_deg,
+        initial_height_m=site.height_m, initial_heading_deg=site.heading_deg,
+        planet=site.planet,
+        # Params lower bounds are > 0: an ideal IMU maps to the smallest allowed values.
+        accel_noise_density=max(imu.accel_noise_density_mps2_rthz, 1e-6),
+        gyro_noise_density=max(imu.gyro_noise_density_rps_rthz, 1e-7),
+        accel_bias_psd=imu.accel_bias_psd_m2ps5, gyro_bias_psd=imu.gyro_bias_psd_rad2ps3,
+        initial_accel_bias_std=max(imu.accel_bias_sigma_mps2, 1e-6),
+        initial_gyro_bias_std=max(imu.gyro_bias_sigma_rps, 1e-7))
+
+
+def write_sim_bag(result: SimResult, bag_path: str | Path,
+                  params_path: str | Path | None = None) -> dict[str, int]:
+    """Write ``result`` to a new MCAP bag at ``bag_path``; return the message count per topic.
+
+    If ``params_path`` is given, also write a ROS 2 params file for the estimator that matches
+    the simulated rover geometry, mounting, start pose, planet and IMU noise.
+    """
+    from geometry_msgs.msg import Vector3Stamped
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import Imu, JointState, NavSatFix, NavSatStatus
+
+    from slip_estimator.bagio import BagWriter
+
+    cfg = result.config
+    imu_cfg = cfg.imu
+    var_w = imu_cfg.gyro_noise_density_rps_rthz ** 2 * cfg.rate_imu_hz
+    var_f = imu_cfg.accel_noise_density_mps2_rthz ** 2 * cfg.rate_imu_hz
+    imu_ns = result.stamps_ns(result.imu_t_s)
+    wheel_ns = result.stamps_ns(result.wheel_t_s)
+    gnss_ns = result.stamps_ns(result.gnss_t_s)
+    truth_step = int(round(cfg.rate_imu_hz / cfg.rate_truth_hz))
+    if abs(truth_step * cfg.rate_truth_hz - cfg.rate_imu_hz) > 1e-9:
+        raise ValueError('rate_truth_hz must divide rate_imu_hz')
+    truth_idx = np.arange(0, len(result.imu_t_s), truth_step)
+    truth_ns = imu_ns[truth_idx]
+
+    # Merge all streams by stamp (ties: IMU first, then wheels, then the rest) so the bag is
+    # written in log-time order.
+    streams = [(TOPIC_IMU, imu_ns), (TOPIC_JOINTS, wheel_ns), (TOPIC_WHEEL_ODOM, wheel_ns),
+               (TOPIC_TRUTH_SLIP, wheel_ns), (TOPIC_GNSS, gnss_ns),
+               (TOPIC_TRUTH_ODOM, truth_ns)]
+    stamps = np.concatenate([s for _, s in streams])
+    which = np.concatenate([np.full(len(s), k) for k, (_, s) in enumerate(streams)])
+    index = np.concatenate([np.arange(len(s)) for _, s in streams])
+    order = np.lexsort((index, which, stamps))
+
+    r = cfg.rover.wheel_radius_m
+    half_T = 0.5 * cfg.rover.track_width_m
+    gnss_var = np.array([cfg.gnss.horizontal_std_m ** 2, cfg.gnss.horizontal_std_m ** 2,
+                         cfg.gnss.vertical_std_m ** 2])
+    imu_diag_w = [var_w, 0.0, 0.0, 0.0, var_w, 0.0, 0.0, 0.0, var_w]
+    imu_diag_f = [var_f, 0.0, 0.0, 0.0, var_f, 0.0, 0.0, 0.0, var_f]
+    wheel_speed_var = (1.0 / (cfg.rover.encoder_pulses_per_m / cfg.rate_wheel_hz)) ** 2
+    counts = {name: 0 for name, _ in streams}
+
+    def imu_msg(i: int) -> Imu:
+        m = Imu()
+        _stamp(m.header, int(imu_ns[i]))
+        m.header.frame_id = 'imu_link'
+        m.orientation_covariance[0] = -1.0
+        f, w = result.f_ib_imu[i], result.omega_ib_imu[i]
+        m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = map(float, w)
+        m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = \
+            map(float, f)
+        m.angular_velocity_covariance = imu_diag_w
+        m.linear_acceleration_covariance = imu_diag_f
+        return m
+
+    def joints_msg(j: int) -> JointState:
+        m = JointState()
+        _stamp(m.header, int(wheel_ns[j]))
+        m.header.frame_id = 'base_link'
+        m.name = list(WHEEL_JOINT_NAMES)
+        m.position = [float(a) for a in result.wheel_angle_rad[j]]
+        m.velocity = [float(a) for a in result.wheel_rate_rps[j]]
+        return m
+
+    def wheel_odom_msg(j: int) -> Odometry:
+        m = Odometry()
+        _stamp(m.header, int(wheel_ns[j]))
+        m.header.frame_id = 'odom'
+        m.child_frame_id = 'base_link'
+        x, y = result.wheel_odom_xy_m[j]
+        m.pose.pose.position.x, m.pose.pose.position.y = float(x), float(y)
+        w, qx, qy, qz = _yaw_quat_wxyz(float(result.wheel_odom_yaw_rad[j]))
+        o = m.pose.pose.orientation
+        o.w, o.x, o.y, o.z = w, qx, qy, qz
+        m.twist.twist.linear.x = float(result.wheel_odom_speed_mps[j])
+        m.twist.twist.angular.z = float(result.wheel_odom_yaw_rate_rps[j])
+        cov = [0.0] * 36
+        cov[0] = wheel_speed_var
+        cov[35] = wheel_speed_var / half_T ** 2
+        for k in (7, 14, 21, 28):
+            cov[k] = 1e6  # vy, vz, wx, wy are not measured by the wheels
+        m.twist.covariance = cov
+        pcov = [0.0] * 36
+        for k in (0, 7, 35):
+            pcov[k] = 1.0  # dead reckoning: unbounded in principle, nominal 1 m / 1 rad
+        for k in (14, 21, 28):
+            pcov[k] = 1e6
+        m.pose.covariance = pcov
+        return m
+
+    def truth_slip_msg(j: int) -> Vector3Stamped:
+        m = Vector3Stamped()
+        _stamp(m.header, int(wheel_ns[j]))
+        m.header.frame_id = 'base_link'
+        m.vector.x = float(result.slip_true[j])
+        m.vector.y = 0.0
+        m.vector.z = float(result.slip_class[j])
+        return m
+
+    def gnss_msg(g: int) -> NavSatFix:
+        m = NavSatFix()
+        _stamp(m.header, int(gnss_ns[g]))
+        m.header.frame_id = 'base_link'
+        m.status.status = NavSatStatus.STATUS_FIX
+        m.status.service = NavSatStatus.SERVICE_GPS
+        lat, lon, alt = result.gnss_llh[g]
+        m.latitude, m.longitude, m.altitude = float(lat), float(lon), float(alt)
+        m.position_covariance = [float(gnss_var[0]), 0.0, 0.0, 0.0, float(gnss_var[1]), 0.0,
+                                 0.0, 0.0, float(gnss_var[2])]
+        m.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
+        return m
+
+    def truth_odom_msg(k: int) -> Odometry:
+        i = int(truth_idx[k])
+        m = Odometry()
+        _stamp(m.header, int(imu_ns[i]))
+        m.header.frame_id = 'odom'
+        m.child_frame_id = 'base_link'
+        p = result.p_ob_o[i]
+        m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = map(float, p)
+        q = result.q_ob_wxyz[i]
+        o = m.pose.pose.orientation
+        o.w, o.x, o.y, o.z = map(float, q)
+        vb, wb = result.v_ob_b[i], result.omega_eb_b[i]
+        t = m.twist.twist
+        t.linear.x, t.linear.y, t.linear.z = map(float, vb)
+        t.angular.x, t.angular.y, t.angular.z = map(float, wb)
+        return m
+
+    makers = [imu_msg, joints_msg, wheel_odom_msg, truth_slip_msg, gnss_msg, truth_odom_msg]
+    with BagWriter(bag_path) as writer:
+        for o in order:
+            k = int(which[o])
+            topic = streams[k][0]
+            writer.write(topic, makers[k](int(index[o])), int(stamps[o]))
+            counts[topic] += 1
+    if params_path is not None:
+        from slip_estimator.paramfile import save_params
+
+        save_params(sim_params(result), params_path)  # type: ignore[arg-type]
+    return counts
+
+
+def simulate_main(argv: list[str] | None = None) -> int:
+    """``slip-estimator simulate``: run a seeded scenario and write the bag (and params)."""
+    ap = argparse.ArgumentParser(prog='slip-estimator simulate',
+                                 description='Simulate a skid-steer rover (IMU, wheels, GNSS, '
+                                 'truth) and write an MCAP rosbag2 bag.')
+    ap.add_argument('--seed', type=int, default=0, help='truth (trajectory/terrain) seed')
+    ap.add_argument('--noise-seed', type=int, default=None,
+                    help='sensor noise seed (default: seed + 1)')
+    ap.add_argument('--scenario', choices=('default', 'short'), default='default')
+    ap.add_argument('--duration-s', type=float, default=None,
+                    help='cut the scenario after this many seconds')
+    ap.add_argument('--output', '-o', required=True, help='bag directory to create')
+    ap.add_argument('--params-out', default=None, help='write a matching ROS 2 params file')
+    args = ap.parse_args(argv)
+    make = default_scenario if args.scenario == 'default' else short_scenario
+    cfg = make(args.seed, args.noise_seed)
+    if args.duration_s is not None:
+        if args.duration_s < 10.0:
+            ap.error('--duration-s must be >= 10 (the initial stationary period)')
+        cfg = cfg.replace(duration_s=args.duration_s)
+    if Path(args.output).exists():
+        ap.error(f'{args.output} exists; choose a new bag path')
+    t0 = time.monotonic()
+    result = simulate(cfg)
+    t1 = time.monotonic()
+    counts = write_sim_bag(result, args.output, args.params_out)
+    t2 = time.monotonic()
+    print(f'simulated {cfg.total_duration_s:.1f} s ({args.scenario}, seed {cfg.truth_seed}, '
+          f'noise seed {cfg.noise_seed}) in {t1 - t0:.1f} s; wrote {args.output} in '
+          f'{t2 - t1:.1f} s')
+    for topic, n in counts.items():
+        print(f'  {topic}: {n} messages')
+    names = ('none', 'low', 'medium', 'high', 'extreme')
+    print('  slip class time: ' + ', '.join(
+        f'{names[c]} {d:.1f} s' for c, d in result.class_durations_s().items()))
+    if args.params_out:
+        print(f'  params: {args.params_out}')
+    return 0

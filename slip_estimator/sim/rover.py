@@ -1,0 +1,490 @@
+"""Seeded skid-steer rover simulator: exact truth kinematics, IMU, wheel encoders and GNSS.
+
+Truth (all on a flat local tangent plane, ENU axes at the start = ROS ``odom``):
+
+1. Profiles of forward body speed v(t), heading rate, slip s(t) and wheel spin are blended
+   from the segment targets with C2 smootherstep ramps, on a fine grid (rate_imu * oversample).
+2. Heading psi = integral of the heading rate. The horizontal position integrates
+   v / sqrt(1 + g_f^2) (cos psi, sin psi), where g_f is the terrain gradient along the heading,
+   so the rover travels at speed v along the surface; z = terrain(x, y). This is solved by a
+   fixed-point iteration (the gradient depends on the position) to < 1e-9 m.
+3. base_link attitude ``C_base_o = Rz(psi) Ry(pitch) Rx(roll)`` with pitch = -atan(g_f) and
+   roll = atan(g_l / sqrt(1 + g_f^2)) (g_l: gradient to the left): x and y of base_link lie
+   in the terrain tangent plane, and the base_link velocity is (v, 0, 0) in FLU.
+4. IMU (REP-145, instantaneous values at the sample time): with central differences on the
+   fine grid, ``omega_eb_b`` from the DCM, ``a_eb_o`` from the velocity, then
+   ``omega_ib_b = omega_eb_b + C_o_b omega_ie_o`` and
+   ``f_ib_b = C_o_b (a - g + 2 omega_ie x v)`` (Groves eq. 5.53 in a planet-fixed frame;
+   gravity and planet rate constant at the start latitude/height; the curvature of the
+   tangent plane, < 1e-4 rad over a few hundred metres, is neglected), plus the lever-arm
+   terms ``alpha x r + omega x (omega x r)``, resolved in imu_link.
+5. Wheels: side speeds v -/+ omega_z T/2, rim speed r*w = side speed * K(s) + spin with
+   K = 1/(1-s) for s >= 0 and 1+s for s < 0 (paper eq. 1 solved for r*w). The slip truth is
+   eq. 1 evaluated on the body speed and the mean rim speed at the wheel sample time.
+
+Sensors (noise seed): constant biases, bias random walks, white noise, optional scale factor
+and misalignment, speed-dependent vibration; encoder counts quantised at
+``encoder_pulses_per_m`` with a random initial phase; GNSS from truth with white noise.
+
+Only the standard library and numpy are imported here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from slip_estimator.core.frames import C_ENU_NED, heading_to_yaw_enu, rpy_to_dcm
+from slip_estimator.core.planet import PLANETS, earth_rate_n, gravity_n, radii_of_curvature
+from slip_estimator.core.types import SLIP_CLASS_UPPER_BOUNDS
+from slip_estimator.sim.scenario import WHEEL_IS_LEFT, ScenarioConfig
+
+MOVING_SPEED_THRESHOLD_MPS = 0.02
+"""Below this body speed and mean rim speed the rover is 'not moving' (slip class 0)."""
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """Truth and sensor samples of one simulation run (SI units, times from t = 0).
+
+    Truth at the IMU sample times (``imu_t_s``), base_link in odom (ENU, origin at start):
+
+    * ``p_ob_o`` (N, 3) position, m; ``q_ob_wxyz`` (N, 4) attitude of base_link (FLU) in odom;
+      ``C_base_o`` (N, 3, 3) the same as DCM; ``v_ob_o`` (N, 3) velocity in odom, m/s;
+      ``v_ob_b`` (N, 3) velocity in base_link (FLU), m/s; ``omega_eb_b`` (N, 3) angular rate
+      w.r.t. the planet in base_link, rad/s; ``speed_mps`` (N,) forward body speed v.
+
+    IMU in imu_link: ``f_ib_imu_true`` / ``omega_ib_imu_true`` (N, 3) error-free values;
+    ``f_ib_imu`` / ``omega_ib_imu`` (N, 3) measured; ``accel_bias_imu`` / ``gyro_bias_imu``
+    (N, 3) the true biases.
+
+    Wheels at ``wheel_t_s`` (M,), columns in ``scenario.WHEEL_JOINT_NAMES`` order:
+    ``rim_speed_true_mps`` (M, 4) true rim speeds r*w; ``wheel_counts`` (M, 4) cumulative
+    encoder counts; ``wheel_angle_rad`` (M, 4) joint position from the counts;
+    ``wheel_rate_rps`` (M, 4) joint velocity from count differences over the wheel period;
+    ``wheel_speed_true_mps`` (M,) forward body speed v at the stamp; ``slip_true`` (M,) slip
+    s of the mean wheel (eq. 1); ``slip_class`` (M,) class index 0..4; ``slip_left_true``,
+    ``slip_right_true`` (M,) per-side slip from the side speeds; ``yaw_rate_true_rps`` (M,).
+
+    Wheel dead reckoning (from the measured encoders, 2-D, odom): ``wheel_odom_xy_m`` (M, 2),
+    ``wheel_odom_yaw_rad`` (M,), ``wheel_odom_speed_mps`` (M,), ``wheel_odom_yaw_rate_rps`` (M,).
+
+    GNSS at ``gnss_t_s`` (G,): ``gnss_llh`` (G, 3) latitude deg, longitude deg, height m.
+
+    ``gravity_mps2`` magnitude of gravity used; ``omega_ie_o`` planet rate in odom (ENU), rad/s;
+    ``yaw0_rad`` initial ENU yaw of base_link; ``terrain`` the terrain surface.
+    """
+
+    config: ScenarioConfig
+    imu_t_s: np.ndarray
+    p_ob_o: np.ndarray
+    q_ob_wxyz: np.ndarray
+    C_base_o: np.ndarray
+    v_ob_o: np.ndarray
+    v_ob_b: np.ndarray
+    omega_eb_b: np.ndarray
+    speed_mps: np.ndarray
+    f_ib_imu_true: np.ndarray
+    omega_ib_imu_true: np.ndarray
+    f_ib_imu: np.ndarray
+    omega_ib_imu: np.ndarray
+    accel_bias_imu: np.ndarray
+    gyro_bias_imu: np.ndarray
+    wheel_t_s: np.ndarray
+    rim_speed_true_mps: np.ndarray
+    wheel_counts: np.ndarray
+    wheel_angle_rad: np.ndarray
+    wheel_rate_rps: np.ndarray
+    wheel_speed_true_mps: np.ndarray
+    slip_true: np.ndarray
+    slip_class: np.ndarray
+    slip_left_true: np.ndarray
+    slip_right_true: np.ndarray
+    yaw_rate_true_rps: np.ndarray
+    wheel_odom_xy_m: np.ndarray
+    wheel_odom_yaw_rad: np.ndarray
+    wheel_odom_speed_mps: np.ndarray
+    wheel_odom_yaw_rate_rps: np.ndarray
+    gnss_t_s: np.ndarray
+    gnss_llh: np.ndarray
+    gravity_mps2: float
+    omega_ie_o: np.ndarray
+    yaw0_rad: float
+    terrain: Terrain
+
+    def stamps_ns(self, t_s: np.ndarray) -> np.ndarray:
+        """Integer-nanosecond stamps (epoch + t) of sample times ``t_s``."""
+        return self.config.epoch_ns + np.round(np.asarray(t_s) * 1e9).astype(np.int64)
+
+    def class_durations_s(self) -> dict[int, float]:
+        """Time spent in each slip class (wheel samples times the wheel period), s."""
+        dt = 1.0 / self.config.rate_wheel_hz
+        return {c: float(np.count_nonzero(self.slip_class == c) * dt) for c in range(5)}
+
+
+# --- slip maths (paper eq. 1) -------------------------------------------------------------------
+
+def slip_ratio(body_speed_mps: np.ndarray, rim_speed_mps: np.ndarray) -> np.ndarray:
+    """Longitudinal slip (paper eq. 1): 1 - v/(r w) if v < r w, else r w/v - 1; 0 if both 0."""
+    v = np.asarray(body_speed_mps, dtype=float)
+    rw = np.asarray(rim_speed_mps, dtype=float)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        s = np.where(v < rw, 1.0 - v / rw, rw / v - 1.0)
+    return np.where((np.abs(v) < 1e-12) & (np.abs(rw) < 1e-12), 0.0, s)
+
+
+def slip_class(slip: np.ndarray, body_speed_mps: np.ndarray, rim_speed_mps: np.ndarray,
+               moving_threshold_mps: float = MOVING_SPEED_THRESHOLD_MPS) -> np.ndarray:
+    """Class index 0..4 (types.SLIP_CLASS_NAMES); 0 when body and rim speed are both slow."""
+    a = np.abs(np.asarray(slip, dtype=float))
+    cls = 1 + np.searchsorted(np.asarray(SLIP_CLASS_UPPER_BOUNDS), a, side='left')
+    still = (np.abs(body_speed_mps) < moving_threshold_mps) & \
+        (np.abs(rim_speed_mps) < moving_threshold_mps)
+    return np.where(still, 0, cls).astype(np.int64)
+
+
+def _slip_gain(s: np.ndarray) -> np.ndarray:
+    """K(s) = r w / v: 1/(1-s) for s >= 0, 1+s for s < 0 (eq. 1 solved for r w)."""
+    return np.where(s >= 0.0, 1.0 / (1.0 - np.minimum(s, 0.99)), 1.0 + s)
+
+
+# --- profiles and terrain ------------------------------------------------------------------------
+
+def _smootherstep(u: np.ndarray) -> np.ndarray:
+    # C2 ramp from 0 to 1: finite jerk, so the IMU signal has no spikes.
+    u = np.clip(u, 0.0, 1.0)
+    return u * u * u * (u * (6.0 * u - 15.0) + 10.0)
+
+
+def _profile(t: np.ndarray, starts: np.ndarray, targets: list[float], ramps: list[float],
+             initial: float) -> np.ndarray:
+    y = np.full_like(t, initial)
+    prev = initial
+    for t0, val, tau in zip(starts, targets, ramps):
+        if val != prev:
+            i0 = np.searchsorted(t, t0)
+            y[i0:] += (val - prev) * _smootherstep((t[i0:] - t0) / tau)
+        prev = val
+    return y
+
+
+class Terrain:
+    """z(x, y) = sum of Gaussian hills + two crossing sinusoids, with its gradient.
+
+    Positions are horizontal odom coordinates (m) *before* the start offset is removed, i.e.
+    ``xy_odom + xy_offset_m``; heights are relative to the start (``z - z0_m``).
+    """
+
+    def __init__(self, centres: np.ndarray, heights: np.ndarray, sigmas: np.ndarray,
+                 und_amp: float, und_k: np.ndarray, und_phase: np.ndarray) -> None:
+        self.c = centres.reshape(-1, 2)
+        self.h = heights
+        self.s = sigmas
+        self.amp = und_amp
+        self.k = und_k.reshape(-1, 2)
+        self.ph = und_phase
+        self.z0_m = 0.0
+        self.xy_offset_m = np.zeros(2)
+
+    def height_and_gradient(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        z = np.zeros(len(xy))
+        g = np.zeros_like(xy)
+        for c, h, s in zip(self.c, self.h, self.s):
+            d = xy - c
+            e = h * np.exp(-(d * d).sum(axis=1) / (2.0 * s * s))
+            z += e
+            g += -d / (s * s) * e[:, None]
+        for k, ph in zip(self.k, self.ph):
+            arg = xy @ k + ph
+            z += self.amp * np.sin(arg)
+            g += self.amp * np.cos(arg)[:, None] * k[None, :]
+        return z, g
+
+    def odom_height_and_normal(self, p_xy_o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Terrain height (odom z, m) and unit upward normal (ENU) at odom positions (N, 2)."""
+        z, g = self.height_and_gradient(np.atleast_2d(p_xy_o) + self.xy_offset_m)
+        n = np.column_stack([-g, np.ones(len(z))])
+        return z - self.z0_m, n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def _cumtrapz(y: np.ndarray, dt: float) -> np.ndarray:
+    out = np.zeros_like(y)
+    out[1:] = np.cumsum(0.5 * (y[1:] + y[:-1]) * dt, axis=0)
+    return out
+
+
+def _attitude(psi: np.ndarray, pitch: np.ndarray, roll: np.ndarray) -> np.ndarray:
+    """Vectorised ``Rz(psi) Ry(pitch) Rx(roll)`` (frames.rpy_to_dcm), shape (N, 3, 3)."""
+    cy, sy = np.cos(psi), np.sin(psi)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    cr, sr = np.cos(roll), np.sin(roll)
+    C = np.empty((len(psi), 3, 3))
+    C[:, 0, 0] = cy * cp
+    C[:, 0, 1] = cy * sp * sr - sy * cr
+    C[:, 0, 2] = cy * sp * cr + sy * sr
+    C[:, 1, 0] = sy * cp
+    C[:, 1, 1] = sy * sp * sr + cy * cr
+    C[:, 1, 2] = sy * sp * cr - cy * sr
+    C[:, 2, 0] = -sp
+    C[:, 2, 1] = cp * sr
+    C[:, 2, 2] = cp * cr
+    return C
+
+
+def _dcm_to_quat_wxyz(C: np.ndarray) -> np.ndarray:
+    """Vectorised rotation matrix -> unit quaternion (w, x, y, z), w >= 0."""
+    tr = np.trace(C, axis1=1, axis2=2)
+    # Stable for all rotations: pick the largest of the four squared components.
+    q2 = np.stack([1.0 + tr, 1.0 + 2.0 * C[:, 0, 0] - tr, 1.0 + 2.0 * C[:, 1, 1] - tr,
+                   1.0 + 2.0 * C[:, 2, 2] - tr], axis=1) / 4.0
+    i = np.argmax(q2, axis=1)
+    q = np.empty((len(C), 4))
+    n = np.arange(len(C))
+    qi = np.sqrt(q2[n, i])
+    d = 4.0 * qi
+    m = C
+    comb = {
+        0: (qi, (m[:, 2, 1] - m[:, 1, 2]) / d, (m[:, 0, 2] - m[:, 2, 0]) / d,
+            (m[:, 1, 0] - m[:, 0, 1]) / d),
+        1: ((m[:, 2, 1] - m[:, 1, 2]) / d, qi, (m[:, 0, 1] + m[:, 1, 0]) / d,
+            (m[:, 0, 2] + m[:, 2, 0]) / d),
+        2: ((m[:, 0, 2] - m[:, 2, 0]) / d, (m[:, 0, 1] + m[:, 1, 0]) / d, qi,
+            (m[:, 1, 2] + m[:, 2, 1]) / d),
+        3: ((m[:, 1, 0] - m[:, 0, 1]) / d, (m[:, 0, 2] + m[:, 2, 0]) / d,
+            (m[:, 1, 2] + m[:, 2, 1]) / d, qi),
+    }
+    for k, comps in comb.items():
+        sel = i == k
+        q[sel] = np.stack([c[sel] for c in comps], axis=1)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q[q[:, 0] < 0.0] *= -1.0
+    return q
+
+
+def _vee_rel(Ca: np.ndarray, Cb: np.ndarray) -> np.ndarray:
+    """Rotation vector of Ca^T Cb (small angles), shape (N, 3)."""
+    R = np.einsum('nji,njk->nik', Ca, Cb)
+    v = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
+                        R[:, 1, 0] - R[:, 0, 1]], axis=1)
+    s = np.linalg.norm(v, axis=1)
+    # asin correction keeps the rate exact to O(h^2) even for fast turns.
+    scale = np.where(s > 1e-12, np.arcsin(np.minimum(s, 1.0)) / np.maximum(s, 1e-300), 1.0)
+    return v * scale[:, None]
+
+
+def _central_diff(y: np.ndarray, h: float) -> np.ndarray:
+    d = np.empty_like(y)
+    d[1:-1] = (y[2:] - y[:-2]) / (2.0 * h)
+    d[0] = (y[1] - y[0]) / h
+    d[-1] = (y[-1] - y[-2]) / h
+    return d
+
+
+# --- the simulator ------------------------------------------------------------------------------
+
+def simulate(config: ScenarioConfig) -> SimResult:
+    """Run the scenario: exact truth, then IMU, wheel encoders and GNSS with seeded errors."""
+    cfg = config
+    rover = cfg.rover
+    site = cfg.site
+    planet = PLANETS[site.planet]
+    truth_rng = np.random.default_rng(cfg.truth_seed)
+    noise_streams = [np.random.default_rng(s)
+                     for s in np.random.SeedSequence(cfg.noise_seed).spawn(8)]
+
+    # --- 1. fine time grid and profiles (one extra sample either side for central diffs)
+    fine_hz = cfg.rate_imu_hz * cfg.oversample
+    h = 1.0 / fine_hz
+    T = cfg.total_duration_s
+    n_fine = int(round(T * fine_hz)) + 1
+    t = (np.arange(n_fine + 2) - 1) * h
+    starts = np.cumsum([0.0] + [s.duration_s for s in cfg.segments[:-1]])
+    segs = cfg.segments
+    v = _profile(t, starts, [s.speed_mps for s in segs], [s.speed_ramp_s for s in segs], 0.0)
+    v = np.maximum(v, 0.0)
+    psi_dot = _profile(t, starts, [s.yaw_rate_rps for s in segs], [1.0] * len(segs), 0.0)
+    s_cmd = _profile(t, starts, [s.slip for s in segs], [0.5] * len(segs), segs[0].slip)
+    spin = np.maximum(_profile(t, starts, [s.spin_mps for s in segs], [1.0] * len(segs), 0.0),
+                      0.0)
+
+    yaw0 = heading_to_yaw_enu(site.heading_deg)
+    psi = yaw0 + _cumtrapz(psi_dot, h)
+    u_fwd = np.stack([np.cos(psi), np.sin(psi)], axis=1)
+    u_left = np.stack([-np.sin(psi), np.cos(psi)], axis=1)
+
+    # --- 2. terrain: hills placed on the flat-ground path by time, seeded jitter
+    xy_flat = _cumtrapz(v[:, None] * u_fwd, h)
+    terr = cfg.terrain
+    centres, heights, sigmas = [], [], []
+    for hill in terr.hills:
+        i = int(np.clip(np.searchsorted(t, hill.t_center_s), 0, len(t) - 1))
+        jitter = truth_rng.normal(0.0, terr.hill_jitter_m, 2)
+        centres.append(xy_flat[i] + (hill.lateral_offset_m + jitter[1]) * u_left[i]
+                       + jitter[0] * u_fwd[i])
+        heights.append(hill.height_m)
+        sigmas.append(hill.sigma_m)
+    k_mag = 2.0 * math.pi / terr.undulation_wavelength_m
+    und_dirs = truth_rng.uniform(0.0, 2.0 * math.pi, 2)
+    terrain = Terrain(np.array(centres).reshape(-1, 2), np.array(heights), np.array(sigmas),
+                       terr.undulation_amplitude_m,
+                       k_mag * np.stack([np.cos(und_dirs), np.sin(und_dirs)], axis=1),
+                       truth_rng.uniform(0.0, 2.0 * math.pi, 2))
+
+    # fixed point: horizontal speed depends on the slope, the slope on the position
+    xy = xy_flat
+    for _ in range(30):
+        _, grad = terrain.height_and_gradient(xy)
+        g_f = (grad * u_fwd).sum(axis=1)
+        xy_new = _cumtrapz((v / np.sqrt(1.0 + g_f * g_f))[:, None] * u_fwd, h)
+        change = np.max(np.abs(xy_new - xy))
+        xy = xy_new
+        if change < 1e-10:
+            break
+    z, grad = terrain.height_and_gradient(xy)
+    g_f = (grad * u_fwd).sum(axis=1)
+    g_l = (grad * u_left).sum(axis=1)
+    z0 = z[1]  # sample at t = 0; odom origin at the start position
+    p_o = np.column_stack([xy - xy[1], z - z0])
+    terrain.z0_m = float(z0)
+    terrain.xy_offset_m = xy[1].copy()
+
+    # --- 3. attitude and velocity of base_link
+    pitch = -np.arctan(g_f)
+    roll = np.arctan(g_l / np.sqrt(1.0 + g_f * g_f))
+    C = _attitude(psi, pitch, roll)  # C_base_o
+    v_o = v[:, None] * C[:, :, 0]
+
+    # --- 4. derivatives on the fine grid (central differences, O(h^2))
+    omega_eb_b = np.zeros((len(t), 3))
+    omega_eb_b[1:-1] = _vee_rel(C[:-2], C[2:]) / (2.0 * h)
+    omega_eb_b[0] = omega_eb_b[1]
+    omega_eb_b[-1] = omega_eb_b[-2]
+    a_o = _central_diff(v_o, h)
+
+    L0 = math.radians(site.latitude_deg)
+    g_n = gravity_n(planet, L0, site.height_m)
+    g_o = C_ENU_NED @ g_n  # (0, 0, -g)
+    omega_ie_o = C_ENU_NED @ earth_rate_n(planet, L0)
+    f_o = a_o - g_o[None, :] + 2.0 * np.cross(omega_ie_o[None, :], v_o)
+    f_b = np.einsum('nji,nj->ni', C, f_o)
+    omega_ib_b = omega_eb_b + np.einsum('nji,j->ni', C, omega_ie_o)
+    r_b = np.asarray(rover.imu_to_base_xyz_m, dtype=float)
+    if np.any(r_b != 0.0):
+        alpha_b = _central_diff(omega_ib_b, h)
+        f_b = f_b + np.cross(alpha_b, r_b) + np.cross(omega_ib_b, np.cross(omega_ib_b, r_b))
+    C_imu_base = rpy_to_dcm(*rover.imu_to_base_rpy_rad)
+
+    # --- 5. wheels on the fine grid
+    K = _slip_gain(s_cmd)
+    half_T = 0.5 * rover.track_width_m
+    yaw_rate = omega_eb_b[:, 2]
+    v_left = v - yaw_rate * half_T
+    v_right = v + yaw_rate * half_T
+    rim_left = v_left * K + spin
+    rim_right = v_right * K + spin
+    rim = np.column_stack([rim_left if left else rim_right for left in WHEEL_IS_LEFT])
+
+    # --- sample indices (fine index 1 is t = 0)
+    os_imu = cfg.oversample
+    i_imu = 1 + np.arange(0, n_fine, os_imu)
+    i_wheel = 1 + np.arange(0, n_fine, int(round(fine_hz / cfg.rate_wheel_hz)))
+    i_gnss = 1 + np.arange(0, n_fine, int(round(fine_hz / cfg.gnss.rate_hz)))
+    t_imu = t[i_imu]
+
+    # --- IMU errors (noise seed)
+    f_true = f_b[i_imu] @ C_imu_base  # C_imu_base^T f, row-wise
+    w_true = omega_ib_b[i_imu] @ C_imu_base
+    n = len(i_imu)
+    e = cfg.imu
+    dt_imu = 1.0 / cfg.rate_imu_hz
+    rng_bias, rng_rw, rng_white, rng_vib, rng_enc, rng_gnss, rng_sf, _ = noise_streams
+    ba0 = rng_bias.normal(0.0, 1.0, 3) * e.accel_bias_sigma_mps2
+    bg0 = rng_bias.normal(0.0, 1.0, 3) * e.gyro_bias_sigma_rps
+    ba = ba0 + np.cumsum(rng_rw.normal(0.0, 1.0, (n, 3)), axis=0) \
+        * math.sqrt(e.accel_bias_psd_m2ps5 * dt_imu)
+    bg = bg0 + np.cumsum(rng_rw.normal(0.0, 1.0, (n, 3)), axis=0) \
+        * math.sqrt(e.gyro_bias_psd_rad2ps3 * dt_imu)
+    M_a = np.eye(3) + np.diag(rng_sf.normal(0.0, 1.0, 3) * e.accel_scale_factor_sigma)
+    M_g = np.eye(3) + np.diag(rng_sf.normal(0.0, 1.0, 3) * e.gyro_scale_factor_sigma)
+    off = ~np.eye(3, dtype=bool)
+    M_a[off] += rng_sf.normal(0.0, 1.0, 6) * e.accel_misalignment_sigma_rad
+    M_g[off] += rng_sf.normal(0.0, 1.0, 6) * e.gyro_misalignment_sigma_rad
+    f_meas = f_true @ M_a.T + ba + rng_white.normal(0.0, 1.0, (n, 3)) \
+        * e.accel_noise_density_mps2_rthz * math.sqrt(cfg.rate_imu_hz)
+    w_meas = w_true @ M_g.T + bg + rng_white.normal(0.0, 1.0, (n, 3)) \
+        * e.gyro_noise_density_rps_rthz * math.sqrt(cfg.rate_imu_hz)
+    # vibration: zero-mean, scales with how fast the wheels or the body move
+    vib = e.vibration
+    vib_speed = np.maximum(np.abs(v[i_imu]), np.abs(rim[i_imu]).mean(axis=1))
+    wheel_phase = _cumtrapz(np.abs(rim).mean(axis=1) / rover.wheel_radius_m, h)[i_imu]
+    for mult, amp_a, amp_g in zip(vib.harmonic_multipliers, vib.accel_harmonic_mps2_per_mps,
+                                  vib.gyro_harmonic_rps_per_mps):
+        ph_a, ph_g = rng_vib.uniform(0.0, 2.0 * math.pi, 2)
+        dir_a, dir_g = rng_vib.normal(0.0, 1.0, (2, 3))
+        dir_a /= np.linalg.norm(dir_a)
+        dir_g /= np.linalg.norm(dir_g)
+        f_meas += (amp_a * vib_speed * np.sin(mult * wheel_phase + ph_a))[:, None] * dir_a
+        w_meas += (amp_g * vib_speed * np.sin(mult * wheel_phase + ph_g))[:, None] * dir_g
+    f_meas += rng_vib.normal(0.0, 1.0, (n, 3)) \
+        * (vib.accel_broadband_mps2_per_mps * vib_speed)[:, None]
+    w_meas += rng_vib.normal(0.0, 1.0, (n, 3)) \
+        * (vib.gyro_broadband_rps_per_mps * vib_speed)[:, None]
+
+    # --- wheel encoders: counts of rim travel, velocity from count differences
+    dist = _cumtrapz(rim, h)
+    dist = dist - dist[1]
+    ppm = rover.encoder_pulses_per_m
+    phase0 = rng_enc.uniform(0.0, 1.0, 4)
+    counts = np.floor(dist[i_wheel] * ppm + phase0).astype(np.int64)
+    dt_wheel = 1.0 / cfg.rate_wheel_hz
+    prev = np.vstack([counts[:1], counts[:-1]])
+    wheel_rate = (counts - prev) / (ppm * dt_wheel * rover.wheel_radius_m)
+    angle = counts / (ppm * rover.wheel_radius_m)
+    rim_w = rim[i_wheel]
+    v_w = v[i_wheel]
+    rim_mean_w = rim_w.mean(axis=1)
+    s_true = slip_ratio(v_w, rim_mean_w)
+    cls = slip_class(s_true, v_w, rim_mean_w)
+    left = np.array(WHEEL_IS_LEFT)
+    s_left = slip_ratio(v_left[i_wheel], rim_w[:, left].mean(axis=1))
+    s_right = slip_ratio(v_right[i_wheel], rim_w[:, ~left].mean(axis=1))
+
+    # wheel dead reckoning from the measured encoders (what a rover's odometry would publish)
+    rim_meas = wheel_rate * rover.wheel_radius_m
+    wo_speed = rim_meas.mean(axis=1)
+    wo_rate = (rim_meas[:, ~left].mean(axis=1) - rim_meas[:, left].mean(axis=1)) \
+        / rover.track_width_m
+    wo_yaw = yaw0 + np.cumsum(wo_rate * dt_wheel)
+    yaw_mid = wo_yaw - 0.5 * wo_rate * dt_wheel
+    wo_xy = np.cumsum(wo_speed[:, None] * np.stack([np.cos(yaw_mid), np.sin(yaw_mid)], axis=1)
+                      * dt_wheel, axis=0)
+
+    # --- GNSS (antenna at base_link) from truth, small-offset geodetic conversion
+    R_N, R_E = radii_of_curvature(planet, L0)
+    pg = p_o[i_gnss]
+    ng = len(i_gnss)
+    noise = rng_gnss.normal(0.0, 1.0, (ng, 3)) * np.array(
+        [cfg.gnss.horizontal_std_m, cfg.gnss.horizontal_std_m, cfg.gnss.vertical_std_m])
+    pg = pg + noise
+    lat = site.latitude_deg + np.degrees(pg[:, 1] / (R_N + site.height_m))
+    lon = site.longitude_deg + np.degrees(pg[:, 0] / ((R_E + site.height_m) * math.cos(L0)))
+    alt = site.height_m + pg[:, 2]
+
+    C_imu = C[i_imu]
+    v_imu = v_o[i_imu]
+    return SimResult(
+        config=cfg, imu_t_s=t_imu, p_ob_o=p_o[i_imu], q_ob_wxyz=_dcm_to_quat_wxyz(C_imu),
+        C_base_o=C_imu, v_ob_o=v_imu, v_ob_b=np.einsum('nji,nj->ni', C_imu, v_imu),
+        omega_eb_b=omega_eb_b[i_imu], speed_mps=v[i_imu],
+        f_ib_imu_true=f_true, omega_ib_imu_true=w_true, f_ib_imu=f_meas, omega_ib_imu=w_meas,
+        accel_bias_imu=ba, gyro_bias_imu=bg,
+        wheel_t_s=t[i_wheel], rim_speed_true_mps=rim_w, wheel_counts=counts,
+        wheel_angle_rad=angle, wheel_rate_rps=wheel_rate, wheel_speed_true_mps=v_w,
+        slip_true=s_true, slip_class=cls, slip_left_true=s_left, slip_right_true=s_right,
+        yaw_rate_true_rps=yaw_rate[i_wheel],
+        wheel_odom_xy_m=wo_xy, wheel_odom_yaw_rad=wo_yaw, wheel_odom_speed_mps=wo_speed,
+        wheel_odom_yaw_rate_rps=wo_rate,
+        gnss_t_s=t[i_gnss], gnss_llh=np.column_stack([lat, lon, alt]),
+        gravity_mps2=float(g_n[2]), omega_ie_o=omega_ie_o, yaw0_rad=yaw0,
+        terrain=terrain)

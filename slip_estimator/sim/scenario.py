@@ -1,0 +1,393 @@
+"""Configuration of the seeded rover simulator: frozen dataclasses with units in names.
+
+A scenario is a list of driving :class:`Segment` s (body speed, heading rate, slip and wheel
+spin targets that the profile blends into at the start of each segment), terrain hills placed
+along the path by time, the rover geometry, the IMU error model and two seeds, one for the
+truth (terrain undulation, hill placement jitter, low-slip values) and one for the sensor
+noise (biases, random walks, white noise, vibration phases, encoder phases, GNSS noise), like
+the OpenVINS simulator's separate truth and measurement seeds.
+
+Conventions (see :mod:`slip_estimator.core.frames`): truth is resolved on a flat local tangent
+plane with ENU axes at the start position (the ROS ``odom`` frame); base_link is FLU; the IMU
+pose in base_link is ``imu_to_base_rpy`` / ``imu_to_base_xyz`` (static transform
+base_link -> imu_link). Heading rate ``yaw_rate_rps`` is the rate of the ENU yaw angle
+(counter-clockwise positive, like a ROS ``angular.z``).
+
+Only the standard library and numpy are imported here.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+WHEEL_JOINT_NAMES = ('front_left_wheel_joint', 'front_right_wheel_joint',
+                     'rear_left_wheel_joint', 'rear_right_wheel_joint')
+"""Joint names of the four wheels, in the column order of all per-wheel arrays."""
+WHEEL_IS_LEFT = (True, False, True, False)
+"""Side of each wheel column (front and rear of a side turn at the same speed)."""
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One piece of the commanded motion; targets are reached by smooth (C2) ramps.
+
+    Attributes
+    ----------
+    duration_s : length of the segment, s.
+    speed_mps : target forward body speed of base_link (along its x axis, i.e. along the
+        terrain surface), m/s, >= 0.
+    yaw_rate_rps : target heading rate (ENU yaw, counter-clockwise positive), rad/s.
+    slip : target longitudinal slip s of the wheels, applied as rim = v/(1-s) for s >= 0 and
+        rim = v (1+s) for s < 0 (paper eq. 1 solved for r*omega); must be < 0.95. A slip of 1
+        (wheels spinning, body stopped) is made with ``speed_mps=0`` and ``spin_mps>0``.
+    spin_mps : extra rim speed added to every wheel (wheels digging in), m/s, >= 0.
+    speed_ramp_s : duration of the speed blend at the segment start, s.
+    label : free text used in reports ('stationary', 'cruise', 'turn', 'stop', ...).
+    """
+
+    duration_s: float
+    speed_mps: float = 0.0
+    yaw_rate_rps: float = 0.0
+    slip: float = 0.05
+    spin_mps: float = 0.0
+    speed_ramp_s: float = 2.0
+    label: str = ''
+
+    def __post_init__(self) -> None:
+        if not self.duration_s > 0.0:
+            raise ValueError(f'segment {self.label!r}: duration_s must be > 0')
+        if self.speed_mps < 0.0 or self.spin_mps < 0.0:
+            raise ValueError(f'segment {self.label!r}: speed_mps and spin_mps must be >= 0')
+        if not -1.0 < self.slip < 0.95:
+            raise ValueError(f'segment {self.label!r}: slip must be in (-1, 0.95); use '
+                             'speed_mps=0 with spin_mps>0 for s=1')
+        if not self.speed_ramp_s > 0.0:
+            raise ValueError(f'segment {self.label!r}: speed_ramp_s must be > 0')
+
+
+@dataclass(frozen=True)
+class HillSpec:
+    """A Gaussian hill placed where the (flat-ground) path is at ``t_center_s``.
+
+    z(x, y) = height_m * exp(-|p - c|^2 / (2 sigma_m^2)); the maximum slope is about
+    0.61 height_m / sigma_m. ``lateral_offset_m`` moves the centre to the left of the path
+    (positive) so the rover crosses the flank and rolls.
+    """
+
+    t_center_s: float
+    height_m: float
+    sigma_m: float
+    lateral_offset_m: float = 0.0
+
+
+@dataclass(frozen=True)
+class TerrainConfig:
+    """Smooth terrain height: hills plus a gentle undulation with seeded phases.
+
+    Attributes
+    ----------
+    hills : Gaussian hills (see :class:`HillSpec`).
+    undulation_amplitude_m : amplitude of each of two crossing sinusoids, m.
+    undulation_wavelength_m : their wavelength, m.
+    hill_jitter_m : 1-sigma random shift of each hill centre along/across the path (truth seed), m.
+    """
+
+    hills: tuple[HillSpec, ...] = ()
+    undulation_amplitude_m: float = 0.1
+    undulation_wavelength_m: float = 30.0
+    hill_jitter_m: float = 0.5
+
+
+@dataclass(frozen=True)
+class RoverConfig:
+    """Rover geometry, IMU mounting and wheel encoders (defaults: WVU Pathfinder).
+
+    Attributes
+    ----------
+    wheel_radius_m : rolling radius r, m.
+    track_width_m : distance between left and right wheel centres, m.
+    imu_to_base_rpy_rad : orientation of imu_link in base_link (roll, pitch, yaw), rad. The
+        default (pi, 0, 0) is an x-forward / y-right / z-down sensor.
+    imu_to_base_xyz_m : position of imu_link in base_link, m.
+    encoder_pulses_per_m : encoder pulses per metre of rim travel.
+    """
+
+    wheel_radius_m: float = 0.12
+    track_width_m: float = 0.685
+    imu_to_base_rpy_rad: tuple[float, float, float] = (math.pi, 0.0, 0.0)
+    imu_to_base_xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    encoder_pulses_per_m: float = 47000.0
+
+
+@dataclass(frozen=True)
+class VibrationConfig:
+    """Speed-dependent, zero-mean vibration added to the IMU while the wheels or body move.
+
+    Amplitudes scale linearly with the vibration speed max(|body speed|, mean |rim speed|) and
+    are given at 1 m/s. Harmonics are sinusoids at multiples of the wheel rotation frequency
+    (e.g. grouser passing) with seeded phases and random per-axis directions; broadband is white.
+
+    Attributes
+    ----------
+    harmonic_multipliers : harmonic frequencies as multiples of the wheel rotation rate.
+    accel_harmonic_mps2_per_mps : accelerometer amplitude of each harmonic, (m/s^2)/(m/s).
+    gyro_harmonic_rps_per_mps : gyro amplitude of each harmonic, (rad/s)/(m/s).
+    accel_broadband_mps2_per_mps : accelerometer broadband 1-sigma per sample, (m/s^2)/(m/s).
+    gyro_broadband_rps_per_mps : gyro broadband 1-sigma per sample, (rad/s)/(m/s).
+    """
+
+    harmonic_multipliers: tuple[float, ...] = (1.0, 12.0, 24.0)
+    accel_harmonic_mps2_per_mps: tuple[float, ...] = (0.08, 0.12, 0.06)
+    gyro_harmonic_rps_per_mps: tuple[float, ...] = (0.003, 0.006, 0.003)
+    accel_broadband_mps2_per_mps: float = 0.15
+    gyro_broadband_rps_per_mps: float = 0.006
+
+    @classmethod
+    def off(cls) -> VibrationConfig:
+        """No vibration."""
+        return cls((), (), (), 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class ImuErrorConfig:
+    """IMU error model (Groves 2013 sec. 4.4); every value is per axis and 1-sigma.
+
+    Attributes
+    ----------
+    accel_noise_density_mps2_rthz : accelerometer white noise (velocity random walk),
+        m/s^2/sqrt(Hz); the per-sample sigma is density * sqrt(rate).
+    gyro_noise_density_rps_rthz : gyro white noise (angle random walk), rad/s/sqrt(Hz).
+    accel_bias_sigma_mps2 : constant (turn-on) accelerometer bias, m/s^2.
+    gyro_bias_sigma_rps : constant gyro bias, rad/s.
+    accel_bias_psd_m2ps5 : accelerometer bias random-walk PSD, m^2/s^5.
+    gyro_bias_psd_rad2ps3 : gyro bias random-walk PSD, rad^2/s^3.
+    accel_scale_factor_sigma : accelerometer scale-factor error (unitless; 1e-3 = 1000 ppm).
+    gyro_scale_factor_sigma : gyro scale-factor error (unitless).
+    accel_misalignment_sigma_rad, gyro_misalignment_sigma_rad : cross-coupling, rad.
+    vibration : vibration model.
+    """
+
+    accel_noise_density_mps2_rthz: float = 1.0e-3
+    gyro_noise_density_rps_rthz: float = 1.0e-4
+    accel_bias_sigma_mps2: float = 0.02
+    gyro_bias_sigma_rps: float = 5.0e-4
+    accel_bias_psd_m2ps5: float = 1.0e-8
+    gyro_bias_psd_rad2ps3: float = 1.0e-12
+    accel_scale_factor_sigma: float = 0.0
+    gyro_scale_factor_sigma: float = 0.0
+    accel_misalignment_sigma_rad: float = 0.0
+    gyro_misalignment_sigma_rad: float = 0.0
+    vibration: VibrationConfig = field(default_factory=VibrationConfig)
+
+    @classmethod
+    def ideal(cls) -> ImuErrorConfig:
+        """A perfect IMU (no noise, bias, scale factor or vibration)."""
+        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, VibrationConfig.off())
+
+
+@dataclass(frozen=True)
+class SiteConfig:
+    """Where the rover starts.
+
+    Attributes
+    ----------
+    latitude_deg, longitude_deg : geodetic start position of base_link, deg.
+    height_m : ellipsoidal height of base_link at the start, m.
+    heading_deg : initial heading of base_link x, clockwise from true north, deg.
+    planet : 'earth', 'mars' or 'moon' (see :mod:`slip_estimator.core.planet`).
+    """
+
+    latitude_deg: float = 39.65
+    longitude_deg: float = -79.95
+    height_m: float = 300.0
+    heading_deg: float = 30.0
+    planet: str = 'earth'
+
+
+@dataclass(frozen=True)
+class GnssConfig:
+    """GNSS fix simulated from truth (antenna at base_link).
+
+    Attributes
+    ----------
+    rate_hz : fix rate, Hz.
+    horizontal_std_m, vertical_std_m : white position noise 1-sigma, m.
+    """
+
+    rate_hz: float = 10.0
+    horizontal_std_m: float = 0.02
+    vertical_std_m: float = 0.04
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """Everything :func:`slip_estimator.sim.rover.simulate` needs.
+
+    Attributes
+    ----------
+    segments : the commanded motion; the first must be stationary for >= 10 s.
+    truth_seed : seed of the trajectory/terrain randomness.
+    noise_seed : seed of all sensor errors.
+    rate_imu_hz, rate_wheel_hz, rate_truth_hz : sample rates, Hz. ``rate_imu_hz *
+        oversample`` must be an integer multiple of every other rate.
+    oversample : truth is generated at rate_imu_hz * oversample for finite differences.
+    duration_s : optional cut of the scenario (None = sum of the segment durations), s.
+    epoch_ns : Unix time of t = 0, ns (stamps in the bag).
+    """
+
+    segments: tuple[Segment, ...]
+    truth_seed: int = 0
+    noise_seed: int = 1
+    rate_imu_hz: float = 250.0
+    rate_wheel_hz: float = 10.0
+    rate_truth_hz: float = 50.0
+    oversample: int = 4
+    duration_s: float | None = None
+    rover: RoverConfig = field(default_factory=RoverConfig)
+    imu: ImuErrorConfig = field(default_factory=ImuErrorConfig)
+    site: SiteConfig = field(default_factory=SiteConfig)
+    terrain: TerrainConfig = field(default_factory=TerrainConfig)
+    gnss: GnssConfig = field(default_factory=GnssConfig)
+    epoch_ns: int = 1_700_000_000_000_000_000
+
+    def __post_init__(self) -> None:
+        if not self.segments:
+            raise ValueError('a scenario needs at least one segment')
+        first = self.segments[0]
+        if first.speed_mps != 0.0 or first.yaw_rate_rps != 0.0 or first.spin_mps != 0.0 \
+                or first.duration_s < 10.0:
+            raise ValueError('the first segment must be stationary for >= 10 s (alignment)')
+        fine = self.rate_imu_hz * self.oversample
+        for name in ('rate_imu_hz', 'rate_wheel_hz', 'rate_truth_hz'):
+            ratio = fine / getattr(self, name)
+            if abs(ratio - round(ratio)) > 1e-9:
+                raise ValueError(f'{name} must divide rate_imu_hz * oversample = {fine}')
+        ratio = fine / self.gnss.rate_hz
+        if abs(ratio - round(ratio)) > 1e-9:
+            raise ValueError(f'gnss.rate_hz must divide rate_imu_hz * oversample = {fine}')
+
+    @property
+    def total_duration_s(self) -> float:
+        """Simulated duration, s."""
+        total = sum(s.duration_s for s in self.segments)
+        return total if self.duration_s is None else min(total, self.duration_s)
+
+    def replace(self, **changes: object) -> ScenarioConfig:
+        """A copy with some fields changed."""
+        return dataclasses.replace(self, **changes)
+
+
+# --- scenario building blocks -----------------------------------------------------------------
+
+def _low_slip(rng: np.random.Generator) -> float:
+    # Realistic low slip on firm soil: a few percent, occasionally near the class edge.
+    return float(rng.uniform(0.02, 0.12))
+
+
+class _Builder:
+    """Appends segments and keeps the running time so hills can be placed by time."""
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self.rng = rng
+        self.segments: list[Segment] = []
+        self.hills: list[HillSpec] = []
+        self.t_s = 0.0
+
+    def add(self, duration_s: float, speed_mps: float = 0.0, yaw_rate_rps: float = 0.0,
+            slip: float | None = None, spin_mps: float = 0.0, label: str = '',
+            speed_ramp_s: float = 2.0) -> float:
+        s = _low_slip(self.rng) if slip is None else slip
+        self.segments.append(Segment(duration_s, speed_mps, yaw_rate_rps, s, spin_mps,
+                                     speed_ramp_s, label))
+        t0 = self.t_s
+        self.t_s += duration_s
+        return t0
+
+    def hill(self, t_center_s: float, height_m: float, sigma_m: float,
+             lateral_offset_m: float = 0.0) -> None:
+        self.hills.append(HillSpec(t_center_s, height_m, sigma_m, lateral_offset_m))
+
+
+def short_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioConfig:
+    """About 90 s: alignment, a turn, a hill, stops and medium, high and extreme slip.
+
+    ``seed`` is the truth seed; the noise seed defaults to ``seed + 1``.
+    """
+    b = _Builder(np.random.default_rng(seed))
+    b.add(12.0, label='stationary')
+    b.add(8.0, 0.5, label='accelerate')
+    b.add(8.0, 0.5, label='cruise')
+    b.add(6.0, 0.5, 0.25, label='arc left')
+    t_up = b.add(8.0, 0.4, slip=0.3, label='uphill medium slip')
+    b.add(6.0, 0.4, slip=-0.12, label='downhill skid')
+    b.hill(t_up + 8.0, 1.2, 4.0, lateral_offset_m=1.5)
+    b.add(6.0, 0.25, slip=0.55, label='high slip')
+    b.add(5.0, 0.0, label='stop')
+    b.add(6.0, 0.0, slip=0.0, spin_mps=0.3, speed_ramp_s=1.5, label='stuck, wheels spinning')
+    b.add(6.0, 0.12, slip=0.8, spin_mps=0.0, label='extreme slip')
+    b.add(6.0, 0.5, -0.2, label='arc right')
+    b.add(5.0, 0.0, label='stop')
+    b.add(5.0, 0.0, 0.5, slip=0.1, label='in-place turn')
+    b.add(4.0, 0.0, label='stop')
+    return ScenarioConfig(tuple(b.segments), truth_seed=seed,
+                          noise_seed=seed + 1 if noise_seed is None else noise_seed,
+                          terrain=TerrainConfig(tuple(b.hills)))
+
+
+def default_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioConfig:
+    """About 6.5 minutes: 15 s alignment, ~5.5 min of driving with every slip class.
+
+    Stops (>= 3 s at rest) every 30-60 s of driving, in-place turns, arcs, three hills (one
+    crossed on its flank), uphill medium/high slip, downhill negative slip, extreme slip and
+    a stuck rover with spinning wheels (s = 1). ``seed`` is the truth seed; the noise seed
+    defaults to ``seed + 1``.
+    """
+    b = _Builder(np.random.default_rng(seed))
+    b.add(15.0, label='stationary')
+    # leg 1: straight, arc, stop
+    b.add(10.0, 0.5, label='accelerate')
+    b.add(20.0, 0.5, label='cruise')
+    b.add(12.0, 0.5, 0.15, label='arc left')
+    b.add(6.0, 0.0, label='stop')
+    # leg 2: in-place turn, hill 1 with uphill medium slip and a downhill skid
+    b.add(4.0, 0.0, -0.45, slip=0.08, label='in-place turn right')
+    b.add(4.0, 0.0, label='stop')
+    b.add(10.0, 0.6, label='cruise')
+    t_up = b.add(12.0, 0.45, slip=0.3, label='uphill medium slip')
+    b.add(4.0, 0.5, label='crest')
+    b.add(10.0, 0.5, slip=-0.3, label='downhill skid medium')
+    b.add(6.0, 0.5, slip=-0.12, label='downhill skid low')
+    b.hill(t_up + 13.0, 3.0, 9.0)
+    b.add(6.0, 0.0, label='stop')
+    # leg 3: arcs and a sandy patch with high slip, hill 2 crossed on its flank
+    b.add(15.0, 0.7, label='cruise')
+    t_arc = b.add(15.0, 0.6, -0.1, label='arc right over hill flank')
+    b.hill(t_arc + 7.5, 2.0, 8.0, lateral_offset_m=5.0)
+    b.add(12.0, 0.35, slip=0.55, label='sand, high slip')
+    b.add(10.0, 0.3, slip=0.45, label='sand, high slip')
+    b.add(5.0, 0.0, label='stop')
+    # leg 4: stuck in sand, wheels spinning, extreme slip while digging out
+    b.add(8.0, 0.0, slip=0.0, spin_mps=0.35, speed_ramp_s=1.5, label='stuck, wheels spinning')
+    b.add(12.0, 0.1, slip=0.78, label='digging out, extreme slip')
+    b.add(8.0, 0.15, slip=0.72, label='digging out, extreme slip')
+    b.add(5.0, 0.0, label='stop')
+    # leg 5: long drive with turns, hill 3, several stops
+    b.add(5.0, 0.0, 0.4, slip=0.1, label='in-place turn left')
+    b.add(4.0, 0.0, label='stop')
+    b.add(20.0, 0.8, label='cruise fast')
+    t_h3 = b.add(20.0, 0.5, 0.05, label='arc left uphill')
+    b.hill(t_h3 + 14.0, 2.5, 10.0, lateral_offset_m=-2.0)
+    b.add(10.0, 0.4, slip=-0.15, label='downhill skid low')
+    b.add(6.0, 0.0, label='stop')
+    b.add(18.0, 0.6, -0.12, label='arc right')
+    b.add(15.0, 0.6, label='cruise')
+    b.add(6.0, 0.0, label='stop')
+    b.add(20.0, 0.4, 0.05, label='cruise slow')
+    b.add(10.0, 0.3, -0.3, label='tight arc right')
+    b.add(8.0, 0.0, label='final stop')
+    return ScenarioConfig(tuple(b.segments), truth_seed=seed,
+                          noise_seed=seed + 1 if noise_seed is None else noise_seed,
+                          terrain=TerrainConfig(tuple(b.hills)))

@@ -1,0 +1,336 @@
+"""Tests of the seeded rover simulator (slip_estimator.sim): truth consistency, IMU physics
+(REP-145, strapdown reproduction), slip truth (paper eq. 1), determinism and the bag writer."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from slip_estimator.core.frames import C_ENU_NED, rotvec_to_dcm, rpy_to_dcm
+from slip_estimator.core.planet import EARTH, earth_rate_n, gravity_n
+from slip_estimator.sim.rover import SimResult, simulate
+from slip_estimator.sim.scenario import (WHEEL_IS_LEFT, WHEEL_JOINT_NAMES, ImuErrorConfig,
+                                         RoverConfig, Segment, TerrainConfig,
+                                         default_scenario, short_scenario)
+
+
+@pytest.fixture(scope='module')
+def short() -> SimResult:
+    return simulate(short_scenario(3))
+
+
+def _paper_slip(v: float, rw: float) -> float:
+    """Paper eq. 1, written out independently of the simulator."""
+    if v < rw:
+        return 1.0 - v / rw
+    if v > rw:
+        return rw / v - 1.0
+    return 0.0
+
+
+# --- determinism ----------------------------------------------------------------------------------
+
+def test_same_seeds_give_identical_arrays(short: SimResult) -> None:
+    again = simulate(short_scenario(3))
+    for name in ('p_ob_o', 'q_ob_wxyz', 'f_ib_imu', 'omega_ib_imu', 'wheel_counts',
+                 'slip_true', 'gnss_llh'):
+        np.testing.assert_array_equal(getattr(short, name), getattr(again, name), err_msg=name)
+
+
+def test_noise_seed_changes_noise_not_truth(short: SimResult) -> None:
+    other = simulate(short_scenario(3, noise_seed=99))
+    for name in ('p_ob_o', 'v_ob_o', 'f_ib_imu_true', 'omega_ib_imu_true', 'slip_true',
+                 'rim_speed_true_mps'):
+        np.testing.assert_array_equal(getattr(short, name), getattr(other, name), err_msg=name)
+    assert np.max(np.abs(short.f_ib_imu - other.f_ib_imu)) > 1e-3
+    assert np.max(np.abs(short.omega_ib_imu - other.omega_ib_imu)) > 1e-4
+    assert not np.array_equal(short.gnss_llh, other.gnss_llh)
+
+
+def test_truth_seed_changes_truth(short: SimResult) -> None:
+    other = simulate(short_scenario(4, noise_seed=short.config.noise_seed))
+    assert np.max(np.abs(short.p_ob_o - other.p_ob_o)) > 0.01
+
+
+# --- truth kinematics -----------------------------------------------------------------------------
+
+def test_truth_is_kinematically_consistent(short: SimResult) -> None:
+    r = short
+    # base_link moves along its own x axis only (no side slip modelled)
+    np.testing.assert_allclose(r.v_ob_b[:, 1:], 0.0, atol=1e-9)
+    np.testing.assert_allclose(r.v_ob_b[:, 0], r.speed_mps, atol=1e-9)
+    # the position derivative is the velocity
+    dt = 1.0 / r.config.rate_imu_hz
+    v_fd = (r.p_ob_o[2:] - r.p_ob_o[:-2]) / (2.0 * dt)
+    np.testing.assert_allclose(v_fd, r.v_ob_o[1:-1], atol=2e-4)
+    # the quaternion is the DCM
+    w, x, y, z = r.q_ob_wxyz[1234]
+    C = r.C_base_o[1234]
+    assert C[1, 0] - C[0, 1] == pytest.approx(4.0 * w * z, abs=1e-9)
+    assert C[2, 1] - C[1, 2] == pytest.approx(4.0 * w * x, abs=1e-9)
+    assert r.p_ob_o[0] == pytest.approx(np.zeros(3), abs=1e-12)
+
+
+def test_rover_follows_the_terrain(short: SimResult) -> None:
+    r = short
+    z, normal = r.terrain.odom_height_and_normal(r.p_ob_o[:, :2])
+    np.testing.assert_allclose(r.p_ob_o[:, 2], z, atol=1e-6)
+    # base_link z is the surface normal: the rover sits flat on the ground (pitch and roll)
+    np.testing.assert_allclose(r.C_base_o[:, :, 2], normal, atol=1e-6)
+    roll = np.degrees(np.arctan2(r.C_base_o[:, 2, 1], r.C_base_o[:, 2, 2]))
+    assert np.max(np.abs(roll)) > 3.0
+
+
+def test_constant_velocity_on_flat_ground_closed_form() -> None:
+    """Straight at constant speed on a plane: f = C^T (-g + 2 omega_ie x v), omega = C^T w_ie."""
+    segs = (Segment(10.0, label='stationary'), Segment(20.0, 0.5, label='cruise'))
+    cfg = short_scenario(0).replace(segments=segs, imu=ImuErrorConfig.ideal(),
+                                    rover=RoverConfig(imu_to_base_rpy_rad=(0.0, 0.0, 0.0)),
+                                    terrain=TerrainConfig(undulation_amplitude_m=0.0))
+    r = simulate(cfg)
+    sel = r.imu_t_s > 15.0
+    L = math.radians(cfg.site.latitude_deg)
+    g_o = C_ENU_NED @ gravity_n(EARTH, L, cfg.site.height_m)
+    w_ie = C_ENU_NED @ earth_rate_n(EARTH, L)
+    v_o = r.v_ob_o[sel]
+    assert np.allclose(np.linalg.norm(v_o, axis=1), 0.5)
+    f_expected = np.einsum('nji,nj->ni', r.C_base_o[sel], -g_o + 2.0 * np.cross(w_ie, v_o))
+    np.testing.assert_allclose(r.f_ib_imu[sel], f_expected, atol=1e-7)
+    w_expected = np.einsum('nji,j->ni', r.C_base_o[sel], w_ie)
+    np.testing.assert_allclose(r.omega_ib_imu[sel], w_expected, atol=1e-12)
+    # the Coriolis term is really there (7e-5 m/s^2 at 0.5 m/s): resolvable at this tolerance
+    assert np.max(np.abs(2.0 * np.cross(w_ie, v_o))) > 1e-5
+
+
+def test_short_scenario_contents(short: SimResult) -> None:
+    r = short
+    assert set(np.unique(r.slip_class)) == {0, 1, 2, 3, 4}
+    assert np.any(r.slip_true < -0.05), 'negative slip (skid) expected'
+    spin = (r.wheel_speed_true_mps == 0.0) & (r.rim_speed_true_mps.mean(axis=1) > 0.1)
+    assert np.any(spin) and np.all(r.slip_true[spin] == 1.0)
+    # starts stationary for >= 10 s and stops again later for >= 3 s
+    moving = (r.speed_mps > 1e-9) | (np.abs(r.omega_eb_b[:, 2]) > 1e-9)
+    assert r.imu_t_s[np.argmax(moving)] >= 10.0
+    rest = ~moving
+    edges = np.flatnonzero(np.diff(rest.astype(int)))
+    runs = np.diff(r.imu_t_s[edges])[1::2]  # rest runs after the first start
+    assert np.count_nonzero(runs >= 3.0) >= 2
+    pitch = np.degrees(np.arcsin(-r.C_base_o[:, 2, 0]))
+    assert 5.0 < np.max(np.abs(pitch)) < 16.0
+    assert 0.4 < np.max(np.abs(r.omega_eb_b[:, 2])) < 0.6
+
+
+def test_default_scenario_has_20s_of_every_class() -> None:
+    r = simulate(default_scenario(0))
+    d = r.class_durations_s()
+    assert 300.0 < r.imu_t_s[-1] < 420.0
+    for c in (1, 2, 3, 4):
+        assert d[c] >= 20.0, (c, d)
+    assert d[1] > 0.6 * sum(d[c] for c in (1, 2, 3, 4))
+
+
+# --- slip truth -----------------------------------------------------------------------------------
+
+def test_slip_truth_matches_rim_speeds_by_eq1(short: SimResult) -> None:
+    r = short
+    rim_mean = r.rim_speed_true_mps.mean(axis=1)
+    for v, rw, s in zip(r.wheel_speed_true_mps, rim_mean, r.slip_true):
+        if abs(v) < 1e-12 and abs(rw) < 1e-12:
+            assert s == 0.0
+            continue
+        assert s == pytest.approx(_paper_slip(v, rw), abs=1e-12)
+    # classes follow the paper's bounds
+    moving = (np.abs(r.wheel_speed_true_mps) >= 0.02) | (np.abs(rim_mean) >= 0.02)
+    bounds = np.digitize(np.abs(r.slip_true), [0.2, 0.4, 0.7], right=True) + 1
+    np.testing.assert_array_equal(r.slip_class[moving], bounds[moving])
+    assert np.all(r.slip_class[~moving] == 0)
+    # front and rear wheels of a side turn alike; sides differ by the turn rate
+    left = np.array(WHEEL_IS_LEFT)
+    np.testing.assert_array_equal(r.rim_speed_true_mps[:, 0], r.rim_speed_true_mps[:, 2])
+    np.testing.assert_array_equal(r.rim_speed_true_mps[:, 1], r.rim_speed_true_mps[:, 3])
+    turning = np.abs(r.yaw_rate_true_rps) > 0.1
+    d = r.rim_speed_true_mps[:, ~left].mean(axis=1) - r.rim_speed_true_mps[:, left].mean(axis=1)
+    assert np.all(np.sign(d[turning]) == np.sign(r.yaw_rate_true_rps[turning]))
+
+
+def test_slip_plateaus_hit_the_commanded_values(short: SimResult) -> None:
+    # on a plateau of a segment the truth equals the commanded slip exactly
+    cfg = short.config
+    starts = np.cumsum([0.0] + [s.duration_s for s in cfg.segments[:-1]])
+    checked = 0
+    for t0, seg in zip(starts, cfg.segments):
+        if seg.speed_mps == 0.0 or seg.yaw_rate_rps != 0.0:
+            continue
+        sel = (short.wheel_t_s > t0 + seg.speed_ramp_s + 1.0) & \
+            (short.wheel_t_s < t0 + seg.duration_s)
+        if np.any(sel):
+            np.testing.assert_allclose(short.slip_true[sel], seg.slip, atol=1e-9)
+            checked += 1
+    assert checked >= 4
+
+
+def test_encoders_measure_the_rim_speed(short: SimResult) -> None:
+    r = short
+    rim_meas = r.wheel_rate_rps * r.config.rover.wheel_radius_m
+    # count differences average over the last wheel period: compare where speeds are steady
+    steady = np.zeros(len(r.wheel_t_s), dtype=bool)
+    steady[1:] = np.all(np.abs(np.diff(r.rim_speed_true_mps, axis=0)) < 1e-6, axis=1)
+    assert np.count_nonzero(steady) > 200
+    resolution = 1.0 / (r.config.rover.encoder_pulses_per_m / r.config.rate_wheel_hz)
+    err = np.abs(rim_meas[steady] - r.rim_speed_true_mps[steady])
+    assert np.max(err) <= resolution + 1e-9
+    angle_rate = np.diff(r.wheel_angle_rad, axis=0) * r.config.rate_wheel_hz
+    np.testing.assert_allclose(angle_rate, r.wheel_rate_rps[1:], atol=1e-9)
+
+
+# --- IMU ------------------------------------------------------------------------------------------
+
+def _flat_rest_config(rpy: tuple[float, float, float], imu: ImuErrorConfig):
+    segs = (Segment(12.0, label='stationary'),)
+    return short_scenario(0).replace(
+        segments=segs, imu=imu, rover=RoverConfig(imu_to_base_rpy_rad=rpy),
+        terrain=TerrainConfig(hills=(), undulation_amplitude_m=0.0))
+
+
+def test_rep145_at_rest_level() -> None:
+    L = math.radians(39.65)
+    g = gravity_n(EARTH, L, 300.0)[2]
+    w_up = EARTH.omega_ie_rps * math.sin(L)
+    # z-up IMU mount: reads +g on z and the up component of the planet rate on z
+    up = simulate(_flat_rest_config((0.0, 0.0, 0.0), ImuErrorConfig.ideal()))
+    np.testing.assert_allclose(up.f_ib_imu, np.tile([0.0, 0.0, g], (len(up.imu_t_s), 1)),
+                               atol=1e-9)
+    np.testing.assert_allclose(up.omega_ib_imu[:, 2], w_up, atol=1e-12)
+    assert np.linalg.norm(up.omega_ib_imu[0]) == pytest.approx(EARTH.omega_ie_rps, rel=1e-9)
+    # x-fwd / y-right / z-down mount (pi, 0, 0): raw z reads -g
+    down = simulate(_flat_rest_config((math.pi, 0.0, 0.0), ImuErrorConfig()))
+    mean_f = down.f_ib_imu.mean(axis=0)
+    assert mean_f[2] == pytest.approx(-g, abs=0.1)
+    # rotated to base_link it is +g again (bias 0.02 m/s^2 1-sigma, noise averages out)
+    f_base = rpy_to_dcm(math.pi, 0.0, 0.0) @ mean_f
+    assert f_base[2] == pytest.approx(g, abs=0.1)
+    # no vibration while the wheels stand still: the noise matches the density
+    sigma = np.std(down.f_ib_imu - down.accel_bias_imu, axis=0)
+    expected = 1.0e-3 * math.sqrt(250.0)
+    np.testing.assert_allclose(sigma, expected, rtol=0.05)
+
+
+def _strapdown_velocity(r: SimResult, t_end_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Independent flat-earth strapdown in the planet-fixed tangent plane (ENU).
+
+    Attitude: C <- R(-omega_ie dt) C exp([omega_ib dt x]) (Rodrigues increments with the mean
+    of consecutive samples); velocity: v <- v + (C f + g - 2 omega_ie x v) dt.
+    """
+    L = math.radians(r.config.site.latitude_deg)
+    g_o = C_ENU_NED @ gravity_n(EARTH, L, r.config.site.height_m)
+    w_ie = C_ENU_NED @ earth_rate_n(EARTH, L)
+    C_imu_base = rpy_to_dcm(*r.config.rover.imu_to_base_rpy_rad)
+    dt = 1.0 / r.config.rate_imu_hz
+    f_b = r.f_ib_imu_true @ C_imu_base.T
+    w_b = r.omega_ib_imu_true @ C_imu_base.T
+    n = int(round(t_end_s / dt))
+    C = r.C_base_o[0].copy()
+    v = np.zeros(3)
+    out = np.empty((n + 1, 3))
+    out[0] = v
+    R_ie = rotvec_to_dcm(-w_ie * dt)
+    for k in range(n):
+        C_new = R_ie @ C @ rotvec_to_dcm(0.5 * (w_b[k] + w_b[k + 1]) * dt)
+        f_o = 0.5 * (C @ f_b[k] + C_new @ f_b[k + 1])
+        v = v + (f_o + g_o - 2.0 * np.cross(w_ie, v)) * dt
+        C = C_new
+        out[k + 1] = v
+    return out, C
+
+
+@pytest.mark.parametrize('rpy, xyz', [((math.pi, 0.0, 0.0), (0.0, 0.0, 0.0)),
+                                      ((0.1, -0.2, 1.3), (0.3, -0.15, 0.4))])
+def test_noiseless_imu_reproduces_truth_velocity(rpy, xyz) -> None:
+    cfg = short_scenario(5).replace(imu=ImuErrorConfig.ideal(),
+                                    rover=RoverConfig(imu_to_base_rpy_rad=rpy,
+                                                      imu_to_base_xyz_m=xyz))
+    r = simulate(cfg)
+    v_ins, C_end = _strapdown_velocity(r, 60.0)
+    n = len(v_ins)
+    # the IMU point moves with v_base + C (omega x r)
+    lever = np.einsum('nij,nj->ni', r.C_base_o[:n], np.cross(r.omega_eb_b[:n], np.array(xyz)))
+    err = np.linalg.norm(v_ins - (r.v_ob_o[:n] + lever), axis=1)
+    assert np.max(err) < 0.01, np.max(err)
+    assert np.max(np.linalg.norm(r.v_ob_o[:n], axis=1)) > 0.4  # it really drove
+    # attitude too
+    dC = C_end.T @ r.C_base_o[n - 1]
+    assert np.linalg.norm(dC - np.eye(3)) < 1e-3
+
+
+def test_imu_errors_are_present_and_sized(short: SimResult) -> None:
+    r = short
+    err = r.f_ib_imu - r.f_ib_imu_true
+    moving = r.speed_mps > 0.3
+    still = r.imu_t_s < 10.0
+    # vibration makes the accelerometer much noisier while driving
+    assert np.std(err[moving] - r.accel_bias_imu[moving]) > \
+        3.0 * np.std(err[still] - r.accel_bias_imu[still])
+    # biases are constant + random walk: nonzero and slowly varying
+    assert np.all(np.abs(r.gyro_bias_imu[0]) > 0.0)
+    assert np.max(np.abs(np.diff(r.accel_bias_imu, axis=0))) < 1e-4
+
+
+# --- bag round trip -------------------------------------------------------------------------------
+
+def test_bag_round_trip(tmp_path, short: SimResult) -> None:
+    pytest.importorskip('rclpy')
+    from slip_estimator.bagio import bag_topics, read_messages
+    from slip_estimator.paramfile import load_params
+    from slip_estimator.sim.bag import ALL_TOPICS, write_sim_bag
+
+    cut = simulate(short.config.replace(duration_s=20.0))
+    bag = tmp_path / 'sim'
+    params_file = tmp_path / 'sim_params.yaml'
+    counts = write_sim_bag(cut, bag, params_file)
+    assert set(bag_topics(bag)) == set(ALL_TOPICS)
+    seen: dict[str, list] = {t: [] for t in ALL_TOPICS}
+    last_log = -1
+    for m in read_messages(bag):
+        stamp = m.msg.header.stamp.sec * 1_000_000_000 + m.msg.header.stamp.nanosec
+        assert stamp == m.log_time_ns
+        assert m.log_time_ns >= last_log
+        last_log = m.log_time_ns
+        seen[m.topic].append(m.msg)
+    assert {t: len(v) for t, v in seen.items()} == counts
+    assert len(seen['/imu/data']) == len(cut.imu_t_s)
+    assert len(seen['/joint_states']) == len(seen['/truth/slip']) == len(cut.wheel_t_s)
+    assert len(seen['/truth/odometry']) == len(cut.imu_t_s[::5])
+    imu0 = seen['/imu/data'][0]
+    assert imu0.header.frame_id == 'imu_link'
+    assert imu0.orientation_covariance[0] == -1.0
+    assert imu0.linear_acceleration.z == pytest.approx(cut.f_ib_imu[0, 2])
+    assert imu0.header.stamp.sec >= 1_600_000_000
+    js = seen['/joint_states'][-1]
+    assert list(js.name) == list(WHEEL_JOINT_NAMES)
+    np.testing.assert_allclose(js.velocity, cut.wheel_rate_rps[-1])
+    slip = np.array([[m.vector.x, m.vector.y, m.vector.z] for m in seen['/truth/slip']])
+    np.testing.assert_allclose(slip[:, 0], cut.slip_true)
+    np.testing.assert_array_equal(slip[:, 2], cut.slip_class)
+    odom = seen['/wheel/odometry'][-1]
+    assert (odom.header.frame_id, odom.child_frame_id) == ('odom', 'base_link')
+    truth = seen['/truth/odometry'][-1]
+    assert truth.pose.pose.position.x == pytest.approx(cut.p_ob_o[::5][-1, 0])
+    fix = seen['/gnss/fix'][0]
+    assert fix.latitude == pytest.approx(39.65, abs=1e-5)
+    assert fix.position_covariance_type == 2
+    p = load_params(params_file)
+    assert p.wheel_input == 'joint_states'
+    assert p.imu_to_base_rpy == pytest.approx([math.pi, 0.0, 0.0])
+    assert p.accel_noise_density == pytest.approx(cut.config.imu.accel_noise_density_mps2_rthz)
+
+
+def test_simulator_core_is_ros_free() -> None:
+    import subprocess
+    import sys
+    code = ('import sys, slip_estimator.sim as s; s.simulate(s.short_scenario(0).replace('
+            'duration_s=12.0)); bad = [m for m in sys.modules if m.split(".")[0] in '
+            '("rclpy", "rosbags", "sensor_msgs", "nav_msgs", "yaml")]; print(bad); '
+            'sys.exit(1 if bad else 0)')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
