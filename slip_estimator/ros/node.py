@@ -1,0 +1,205 @@
+"""The thin rclpy node: declare parameters, subscribe, hand messages to the adapter, publish.
+
+All logic lives in :class:`slip_estimator.ros.adapter.SlipEstimatorAdapter` (shared with the bag
+replay); this module only deals with rclpy.
+
+QoS
+---
+Inputs use the sensor-data profile (BEST_EFFORT, VOLATILE, KEEP_LAST) with a deeper queue:
+depth 500 for ``/imu/data`` (2 s at 250 Hz) and 100 for the wheel topic. A best-effort
+subscription matches both best-effort publishers (the usual IMU driver setting) and reliable
+ones (bag players, ``ros2 topic pub``); a reliable subscription would silently not connect to a
+best-effort driver. The deep queue absorbs executor stalls (GIL, garbage collection, a burst
+from a bag player) so that no sample is overwritten before the callback runs; lost samples
+would show up in ``/diagnostics`` as the ``/imu/data stamp_gaps`` counter and as a difference
+between the publisher's count and ``/imu/data received``.
+Outputs are RELIABLE, VOLATILE, KEEP_LAST: depth 10 for odometry and diagnostics, 100 for the
+slip topics (one message per wheel sample, consumers must not miss class changes).
+
+Parameters
+----------
+Declared from :class:`slip_estimator.core.params.Params` (names, defaults, descriptions with
+unit and range) with dynamic typing, so that ``wheel_radius:=1`` (an integer) is accepted and
+every value is validated once, by Params. An invalid start-up value logs the parameter, value
+and allowed range and ``main`` returns 2. Runtime changes are validated the same way (invalid
+ones are rejected with that message); valid ones take effect at the next estimator reset (see
+the adapter). ``wheel_input`` cannot change at runtime: it decides the subscriptions.
+"""
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+)
+
+from slip_estimator.core.params import Params, ParameterError, describe
+from slip_estimator.ros.adapter import (
+    OUTPUT_TYPES,
+    TOPIC_IMU,
+    TOPIC_SLIP,
+    TOPIC_SLIP_RATIO,
+    Output,
+    SlipEstimatorAdapter,
+)
+
+NODE_NAME = 'slip_estimator'
+IMU_QUEUE_DEPTH = 500
+WHEEL_QUEUE_DEPTH = 100
+STALE_AFTER_S = 1.0
+"""The watchdog reports STALE 'no IMU data' when no IMU message arrived for this long (wall)."""
+
+
+def input_qos(depth: int) -> QoSProfile:
+    """Sensor-data QoS (best effort, volatile) with a deeper KEEP_LAST queue."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def output_qos(depth: int) -> QoSProfile:
+    """Reliable, volatile output QoS."""
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                      reliability=ReliabilityPolicy.RELIABLE,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+def coerce_param_value(name: str, value: Any) -> Any:
+    """Give a ROS parameter value the Python type of the Params field (ints to floats where
+    the default is a float, arrays to lists); anything else is left for Params to reject."""
+    default = getattr(_DEFAULTS, name)
+    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(default, list) and not isinstance(value, str):
+        try:
+            items = list(value)
+        except TypeError:
+            return value
+        if default and isinstance(default[0], float):
+            return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                    for v in items]
+        return items
+    return value
+
+
+_DEFAULTS = Params()
+_FIELDS = tuple(f.name for f in dataclasses.fields(Params))
+
+
+class SlipEstimatorNode(Node):
+    """ROS 2 node around :class:`SlipEstimatorAdapter`.
+
+    Raises :class:`ParameterError` from the constructor when a parameter is invalid.
+    """
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        for name in _FIELDS:
+            self.declare_parameter(
+                name, getattr(_DEFAULTS, name),
+                ParameterDescriptor(description=describe(name), dynamic_typing=True))
+        params = Params.from_dict({name: coerce_param_value(
+            name, self.get_parameter(name).value) for name in _FIELDS})
+        self.adapter = SlipEstimatorAdapter(params)
+        self.get_logger().info('effective parameters: ' + ', '.join(
+            f'{k}={v!r}' for k, v in params.to_dict().items()))
+
+        self._pubs = {topic: self.create_publisher(
+            cls, topic, output_qos(100 if topic in (TOPIC_SLIP, TOPIC_SLIP_RATIO) else 10))
+            for topic, cls in OUTPUT_TYPES.items()}
+        self._subs = []
+        for topic, cls in self.adapter.input_types.items():
+            depth = IMU_QUEUE_DEPTH if topic == TOPIC_IMU else WHEEL_QUEUE_DEPTH
+            self._subs.append(self.create_subscription(
+                cls, topic, self._callback(topic), input_qos(depth)))
+        self.get_logger().info(
+            f'subscribed to {", ".join(self.adapter.input_types)}; publishing '
+            f'{", ".join(OUTPUT_TYPES)}')
+
+        self._last_imu_wall = time.monotonic()
+        self._watchdog = self.create_timer(
+            STALE_AFTER_S, self._check_imu_stale, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+
+    def _callback(self, topic: str):  # noqa: ANN202 -- rclpy callback
+        handle = self.adapter.on_message
+
+        def callback(msg: Any) -> None:
+            if topic == TOPIC_IMU:
+                self._last_imu_wall = time.monotonic()
+            try:
+                self._publish(handle(topic, msg))
+            except Exception as exc:  # noqa: BLE001 -- never die on one message
+                self.adapter.count_exception(topic)
+                self.get_logger().error(f'{topic} callback failed: {exc!r}',
+                                        throttle_duration_sec=5.0)
+        return callback
+
+    def _publish(self, outputs: list[Output]) -> None:
+        for topic, msg in outputs:
+            self._pubs[topic].publish(msg)
+
+    def _check_imu_stale(self) -> None:
+        if time.monotonic() - self._last_imu_wall > STALE_AFTER_S:
+            stamp_ns = self.get_clock().now().nanoseconds
+            self._publish(self.adapter.stale_diagnostics(stamp_ns, 'no IMU data'))
+
+    def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
+        ours = {p.name: coerce_param_value(p.name, p.value) for p in parameters
+                if p.name in _FIELDS}
+        if not ours:
+            return SetParametersResult(successful=True)
+        current = self.adapter.pending_params or self.adapter.params
+        if 'wheel_input' in ours and ours['wheel_input'] != current.wheel_input:
+            return SetParametersResult(
+                successful=False, reason='wheel_input cannot change at runtime; restart the node')
+        try:
+            new = current.replace(**ours)
+        except ParameterError as exc:
+            self.get_logger().error(f'rejected parameter change: {exc}')
+            return SetParametersResult(successful=False, reason=str(exc))
+        self.adapter.request_params(new)
+        self.get_logger().info(
+            f'accepted parameter change {ours}; effective at the next estimator reset')
+        return SetParametersResult(successful=True)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``slip-estimator-node`` / ``ros2 run slip_estimator slip_estimator_node``.
+
+    Returns 0 on a normal shutdown (Ctrl-C, external shutdown) and 2 when a parameter is
+    invalid (the node refuses to start).
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        try:
+            node = SlipEstimatorNode()
+        except ParameterError as exc:
+            # rcutils writes to stderr: the message names the parameter and its range.
+            rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid parameter, not starting: {exc}')
+            return 2
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
