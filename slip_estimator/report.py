@@ -1,0 +1,396 @@
+"""Command-line shells: ``slip-estimator evaluate`` and ``slip-estimator import-pathfinder``.
+
+Thin by design (parse arguments, read bags, call :mod:`slip_estimator.evaluation`, draw plots
+with the Agg backend, show progress). The bag reader :func:`load_run` turns an input bag and an
+estimator output bag into a plain :class:`~slip_estimator.evaluation.RunData`.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from slip_estimator.evaluation import RunData, RunEvaluation
+
+EST_SLIP_TOPIC = '/slip_estimator/slip'
+EST_SLIP_VECTOR_TOPIC = '/slip_estimator/slip_ratio'
+EST_ODOM_TOPIC = '/slip_estimator/odometry'
+TRUTH_SLIP_TOPIC = '/truth/slip'
+TRUTH_ODOM_TOPIC = '/truth/odometry'
+GNSS_TOPIC = '/gnss/fix'
+JOINT_TOPIC = '/joint_states'
+
+
+class _Progress:
+    """A single stderr line updated at most every 0.5 s."""
+
+    def __init__(self, label: str, total_s: float | None, enabled: bool = True) -> None:
+        self.label, self.total_s, self.enabled = label, total_s, enabled
+        self._last = 0.0
+        self._t0: int | None = None
+
+    def update(self, n: int, log_time_ns: int) -> None:
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if now - self._last < 0.5:
+            return
+        self._last = now
+        if self._t0 is None:
+            self._t0 = log_time_ns
+        elapsed = (log_time_ns - self._t0) * 1e-9
+        frac = f' {100.0 * elapsed / self.total_s:5.1f}%' if self.total_s else ''
+        print(f'\r{self.label}: {n} messages, {elapsed:7.1f} s of data{frac}', end='',
+              file=sys.stderr, flush=True)
+
+    def done(self, n: int) -> None:
+        if self.enabled:
+            print(f'\r{self.label}: {n} messages read' + ' ' * 30, file=sys.stderr, flush=True)
+
+
+def _stamp_ns(msg: Any) -> int:
+    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
+
+
+def _num(text: str) -> float:
+    try:
+        return float(text)
+    except (TypeError, ValueError):
+        return float('nan')
+
+
+def _read(path: str | Path, topics: set[str], label: str, progress: bool) -> dict[str, list]:
+    from slip_estimator.bagio import bag_duration_s, read_messages
+
+    out: dict[str, list] = {t: [] for t in topics}
+    try:
+        total = bag_duration_s(path)
+    except Exception:  # noqa: BLE001 - progress is cosmetic
+        total = None
+    bar = _Progress(label, total, progress)
+    n = 0
+    for m in read_messages(path, topics):
+        out[m.topic].append(m.msg)
+        n += 1
+        bar.update(n, m.log_time_ns)
+    bar.done(n)
+    return out
+
+
+def _odometry_arrays(msgs: list) -> tuple[np.ndarray, ...] | tuple[None, ...]:
+    if not msgs:
+        return None, None, None, None
+    t = np.array([_stamp_ns(m) for m in msgs], dtype=np.int64)
+    p = np.array([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z]
+                  for m in msgs])
+    q = np.array([[m.pose.pose.orientation.w, m.pose.pose.orientation.x,
+                   m.pose.pose.orientation.y, m.pose.pose.orientation.z] for m in msgs])
+    v = np.array([[m.twist.twist.linear.x, m.twist.twist.linear.y, m.twist.twist.linear.z]
+                  for m in msgs])
+    o = np.argsort(t, kind='stable')
+    return t[o], p[o], q[o], v[o]
+
+
+def load_run(input_bag: str | Path, output_bag: str | Path, *, wheel_radius_m: float = 0.12,
+             wheel_joint_names: list[str] | None = None, progress: bool = True) -> RunData:
+    """Arrays of a run: truth/GNSS/wheels from the input bag, estimates from the output bag.
+
+    The estimated slip comes from the ``/slip_estimator/slip`` statuses (one per wheel sample,
+    'unknown' values -> NaN, class -1); without them the ``/slip_estimator/slip_ratio`` vectors
+    are used (those exist only for known estimates). Rim speeds for the GNSS truth are the mean
+    of the named wheel joints (all joints when no names are given) times ``wheel_radius_m``.
+    """
+    inp = _read(input_bag, {TRUTH_SLIP_TOPIC, TRUTH_ODOM_TOPIC, GNSS_TOPIC, JOINT_TOPIC},
+                f'reading {Path(input_bag).name}', progress)
+    out = _read(output_bag, {EST_SLIP_TOPIC, EST_SLIP_VECTOR_TOPIC, EST_ODOM_TOPIC},
+                f'reading {Path(output_bag).name}', progress)
+
+    rows = []
+    for m in out[EST_SLIP_TOPIC]:
+        for st in m.status:
+            kv = {k.key: k.value for k in st.values}
+            if 'slip_ratio' not in kv:
+                continue
+            cls = _num(kv.get('slip_class', 'unknown'))
+            rows.append((_stamp_ns(m), _num(kv['slip_ratio']), _num(kv.get('slip_ratio_std')),
+                         int(cls) if math.isfinite(cls) else -1, _num(kv.get('body_speed')),
+                         _num(kv.get('wheel_speed'))))
+            break
+    if not rows:
+        rows = [(_stamp_ns(m), m.vector.x, m.vector.y, round(m.vector.z), float('nan'),
+                 float('nan')) for m in out[EST_SLIP_VECTOR_TOPIC]]
+    rows.sort(key=lambda r: r[0])
+    cols = list(zip(*rows)) if rows else [[]] * 6
+    est_t = np.array(cols[0], dtype=np.int64)
+    est = [np.array(c, dtype=float) for c in cols[1:]]
+
+    eo = _odometry_arrays(out[EST_ODOM_TOPIC])
+    to = _odometry_arrays(inp[TRUTH_ODOM_TOPIC])
+    ts = sorted(inp[TRUTH_SLIP_TOPIC], key=_stamp_ns)
+    truth_t = np.array([_stamp_ns(m) for m in ts], dtype=np.int64) if ts else None
+    truth_s = np.array([m.vector.x for m in ts]) if ts else None
+    truth_c = np.array([round(m.vector.z) for m in ts]) if ts else None
+
+    gnss = sorted((m for m in inp[GNSS_TOPIC] if m.status.status >= 0), key=_stamp_ns)
+    g_t = g_llh = g_sig = None
+    if gnss:
+        g_t = np.array([_stamp_ns(m) for m in gnss], dtype=np.int64)
+        g_llh = np.array([[math.radians(m.latitude), math.radians(m.longitude), m.altitude]
+                          for m in gnss])
+        g_sig = np.array([math.sqrt(0.5 * (m.position_covariance[0] + m.position_covariance[4]))
+                          if m.position_covariance_type > 0 else float('nan') for m in gnss])
+    w_t = w_v = None
+    joints = sorted(inp[JOINT_TOPIC], key=_stamp_ns)
+    if joints:
+        names = wheel_joint_names or list(joints[0].name)
+        w_t, w_v = [], []
+        for m in joints:
+            rates = dict(zip(m.name, m.velocity))
+            vals = [rates[n] for n in names if n in rates]
+            if vals:
+                w_t.append(_stamp_ns(m))
+                w_v.append(wheel_radius_m * float(np.mean(vals)))
+        w_t, w_v = np.array(w_t, dtype=np.int64), np.array(w_v)
+    return RunData(est_t, est[0], est[1], est[2].astype(int) if len(est[2]) else
+                   np.zeros(0, int), est[3], est[4], *eo, truth_t, truth_s, truth_c, *to,
+                   g_t, g_llh, g_sig, w_t, w_v)
+
+
+# --------------------------------------------------------------------------------------------
+# Figures
+# --------------------------------------------------------------------------------------------
+def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Path]:
+    """Trajectory, slip vs truth over time, speed-error histogram, confusion matrix (PNG)."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    from slip_estimator.core.types import SLIP_CLASS_NAMES
+
+    report_dir.mkdir(parents=True, exist_ok=True)
+    files = []
+    t0 = run.est_slip_stamp_ns[0] if len(run.est_slip_stamp_ns) else 0
+
+    fig, ax = plt.subplots(figsize=(7, 7))
+    if ev.truth_p_m is not None:
+        tp = ev.truth_p_m
+        if ev.truth_source.startswith('gnss') and run.est_odom_p_m is not None:
+            # Same origin alignment as the metrics.
+            k = int(np.searchsorted(ev.truth_stamp_ns, run.est_odom_stamp_ns[0]))
+            k = min(k, len(tp) - 1)
+            tp = tp - tp[k] + run.est_odom_p_m[0]
+        ax.plot(tp[:, 0], tp[:, 1], 'k.-', ms=2, lw=0.8, label=f'truth ({ev.truth_source})')
+    if run.est_odom_p_m is not None:
+        ax.plot(run.est_odom_p_m[:, 0], run.est_odom_p_m[:, 1], 'r-', lw=1.2, label='estimate')
+        ax.plot(*run.est_odom_p_m[0, :2], 'go', label='start')
+    ax.set_xlabel('east [m]')
+    ax.set_ylabel('north [m]')
+    ax.axis('equal')
+    ax.grid(True)
+    ax.legend()
+    ax.set_title('Trajectory (odom frame, ENU)')
+    files.append(report_dir / 'trajectory.png')
+    fig.savefig(files[-1], dpi=120)
+    plt.close(fig)
+
+    fig, axs = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    te = (run.est_slip_stamp_ns - t0) * 1e-9
+    if ev.gnss_truth is not None:
+        tt, st = (ev.gnss_truth.stamp_ns - t0) * 1e-9, ev.gnss_truth.s
+        vt, vlab = ev.gnss_truth.v_forward_mps, 'GNSS v_xTR'
+    elif run.truth_slip_stamp_ns is not None:
+        tt, st = (run.truth_slip_stamp_ns - t0) * 1e-9, run.truth_slip
+        vt = run.truth_odom_v_mps[:, 0] if run.truth_odom_v_mps is not None else None
+        vlab = 'truth v_x'
+    else:
+        tt = st = vt = None
+    if tt is not None:
+        axs[0].plot(tt, st, 'k-', lw=0.8, label='truth')
+    axs[0].plot(te, run.est_slip, 'r.', ms=2, label='estimate')
+    for b in (0.2, 0.4, 0.7):
+        for sgn in (1, -1):
+            axs[0].axhline(sgn * b, color='0.7', lw=0.5)
+    axs[0].set_ylabel('slip ratio')
+    axs[0].set_ylim(-1.05, 1.05)
+    axs[0].legend()
+    axs[0].grid(True)
+    axs[1].plot(te, run.est_body_speed_mps, 'r-', lw=0.8, label='estimated body speed')
+    axs[1].plot(te, run.est_wheel_speed_mps, 'b-', lw=0.6, label='rim speed r*w')
+    if vt is not None:
+        tv = tt if ev.gnss_truth is not None else (run.truth_odom_stamp_ns - t0) * 1e-9
+        axs[1].plot(tv, vt, 'k-', lw=0.8, label=vlab)
+    axs[1].set_xlabel('time [s]')
+    axs[1].set_ylabel('speed [m/s]')
+    axs[1].legend()
+    axs[1].grid(True)
+    files.append(report_dir / 'slip_vs_truth.png')
+    fig.savefig(files[-1], dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    if ev.speed is not None and ev.speed.n:
+        ax.hist(ev.speed.errors, bins=50, color='tab:blue')
+        ax.set_title(f'forward-speed error: RMSE {ev.speed.rmse:.3f} m/s (n={ev.speed.n})')
+    ax.set_xlabel('v_est - v_truth [m/s]')
+    files.append(report_dir / 'velocity_error_hist.png')
+    fig.savefig(files[-1], dpi=120)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 5))
+    if ev.slip is not None:
+        pct = np.nan_to_num(ev.slip.percent)
+        ax.imshow(pct, cmap='Blues', vmin=0, vmax=100)
+        for e in range(pct.shape[0]):
+            for t in range(pct.shape[1]):
+                ax.text(t, e, f'{pct[e, t]:.1f}%\n({ev.slip.counts[e, t]})', ha='center',
+                        va='center', fontsize=7, color='k' if pct[e, t] < 60 else 'w')
+        ax.set_xticks(range(5), SLIP_CLASS_NAMES)
+        ax.set_yticks(range(5), SLIP_CLASS_NAMES)
+        ax.set_xlabel('truth class')
+        ax.set_ylabel('estimated class')
+        ax.set_title(f'balanced accuracy {ev.slip.balanced_accuracy:.3f}, '
+                     f'coverage {ev.slip.coverage:.3f}')
+    files.append(report_dir / 'confusion_matrix.png')
+    fig.savefig(files[-1], dpi=120)
+    plt.close(fig)
+    return files
+
+
+# --------------------------------------------------------------------------------------------
+# CLI
+# --------------------------------------------------------------------------------------------
+def _fmt(x: float | None, unit: str = '', digits: int = 3) -> str:
+    return 'n/a' if x is None or not math.isfinite(x) else f'{x:.{digits}f}{unit}'
+
+
+def summary_text(ev: RunEvaluation) -> str:
+    """Key figures with the truth they rest on."""
+    from slip_estimator.evaluation import format_confusion
+
+    lines = [f'truth: {ev.truth_source}   (valid: '
+             + ', '.join(f'{k}={"yes" if v else "NO"}' for k, v in ev.valid.items()) + ')']
+    lines += [f'  note: {n}' for n in ev.notes]
+    if ev.slip is not None:
+        s = ev.slip
+        lines += ['', 'confusion matrix (rows estimated, columns truth, % of column):',
+                  format_confusion(s), '',
+                  f'balanced accuracy {_fmt(s.balanced_accuracy)} (strict '
+                  f'{_fmt(s.balanced_accuracy_strict)}), coverage {_fmt(s.coverage)}',
+                  f'significant slip |s|>0.2: precision {_fmt(s.significant_precision)}, '
+                  f'recall {_fmt(s.significant_recall)}, F1 {_fmt(s.significant_f1)}',
+                  f'slip MAE {_fmt(s.slip_mae)}  (matched samples {s.n_matched})']
+    if ev.speed is not None:
+        lines.append(f'forward speed RMSE {_fmt(ev.speed.rmse, " m/s")}, mean '
+                     f'{_fmt(ev.speed.mean, " m/s")} (n={ev.speed.n})')
+    if ev.trajectory is not None:
+        tr = ev.trajectory
+        lines.append(f'position error final {_fmt(tr.final_error_m, " m")}, RMS '
+                     f'{_fmt(tr.rms_error_m, " m")}, distance {_fmt(tr.distance_m, " m", 1)}, '
+                     f'drift {_fmt(tr.drift_percent, " %", 2)}')
+        lines.append(f'heading error RMS {_fmt(tr.heading_rms_deg, " deg", 2)}, final '
+                     f'{_fmt(tr.heading_final_deg, " deg", 2)} (truth: {tr.heading_truth})')
+    return '\n'.join(lines)
+
+
+def evaluate_main(argv: list[str] | None = None) -> int:
+    """Run ``slip-estimator evaluate``; returns the exit code.
+
+    ``slip-estimator evaluate --input IN --estimate OUT [--params F] --report-dir D [--json F]``
+    """
+    ap = argparse.ArgumentParser(prog='slip-estimator evaluate',
+                                 description='Evaluate estimator output against truth '
+                                             '(simulation truth or GNSS).')
+    ap.add_argument('--input', required=True, help='input bag (sensors, truth or /gnss/fix)')
+    ap.add_argument('--estimate', required=True, help='estimator output bag (replay)')
+    ap.add_argument('--params', help='params file used for the run (wheel radius, joints, '
+                                     'origin)')
+    ap.add_argument('--report-dir', required=True, help='folder for figures and metrics.json')
+    ap.add_argument('--json', help='also write the metrics JSON here')
+    ap.add_argument('--gnss-window', type=float, default=1.0,
+                    help='GNSS velocity fit window, s (default 1.0, for 10 Hz RTK)')
+    ap.add_argument('--wheel-time-offset', type=float, default=0.0,
+                    help='compare a wheel stamp t with GNSS at t + offset, s (Pathfinder: '
+                         'about -0.1 to -0.2)')
+    ap.add_argument('--projection', choices=('course', 'estimate'), default='course',
+                    help='GNSS truth forward speed: along the GNSS track (default, independent '
+                         'of the estimate) or projected on the estimated body x axis')
+    ap.add_argument('--no-plots', action='store_true', help='skip the figures')
+    ap.add_argument('--quiet', action='store_true', help='no progress line')
+    args = ap.parse_args(argv)
+
+    from slip_estimator.core.params import Params
+    from slip_estimator.evaluation import evaluate_run
+
+    params = Params()
+    if args.params:
+        from slip_estimator.paramfile import load_params
+        params = load_params(args.params)
+    run = load_run(args.input, args.estimate, wheel_radius_m=params.wheel_radius,
+                   wheel_joint_names=list(params.wheel_joint_names), progress=not args.quiet)
+    if len(run.est_slip_stamp_ns) == 0:
+        print('error: no slip estimates in the output bag', file=sys.stderr)
+        return 1
+    llh0 = None
+    if args.params:
+        llh0 = np.array([math.radians(params.initial_latitude_deg),
+                         math.radians(params.initial_longitude_deg), params.initial_height_m])
+    ev = evaluate_run(run, llh0=llh0, moving_threshold_mps=params.moving_speed_threshold,
+                      gnss_window_s=args.gnss_window,
+                      wheel_time_offset_s=args.wheel_time_offset,
+                      projection=args.projection)
+    print(summary_text(ev))
+    report_dir = Path(args.report_dir)
+    report_dir.mkdir(parents=True, exist_ok=True)
+    metrics = ev.to_dict()
+    metrics['input'] = str(args.input)
+    metrics['estimate'] = str(args.estimate)
+    text = json.dumps(metrics, indent=2)
+    (report_dir / 'metrics.json').write_text(text)
+    if args.json:
+        Path(args.json).write_text(text)
+    (report_dir / 'summary.txt').write_text(summary_text(ev) + '\n')
+    if not args.no_plots:
+        files = write_figures(run, ev, report_dir)
+        print(f'report: {report_dir} ({", ".join(f.name for f in files)})')
+    return 0
+
+
+def import_main(argv: list[str] | None = None) -> int:
+    """Run ``slip-estimator import-pathfinder FILE.mat --output BAG [--params-out FILE]``."""
+    ap = argparse.ArgumentParser(prog='slip-estimator import-pathfinder',
+                                 description='Convert a WVU Pathfinder .mat log to an MCAP bag '
+                                             'and a params file; prints what was verified.')
+    ap.add_argument('mat', help='Pathfinder .mat file (MATLAB v7.3)')
+    ap.add_argument('--output', required=True, help='output bag directory (must not exist)')
+    ap.add_argument('--params-out', help='write a ROS 2 params file for this log')
+    ap.add_argument('--heading', type=float, help='initial heading override, deg cw from north '
+                                                  '(default: estimated from GNSS)')
+    ap.add_argument('--measured-noise', action='store_true',
+                    help='IMU noise densities measured at rest instead of the datasheet')
+    args = ap.parse_args(argv)
+
+    from slip_estimator import pathfinder as pf
+    from slip_estimator.paramfile import save_params
+
+    if Path(args.output).exists():
+        print(f'error: {args.output} exists', file=sys.stderr)
+        return 1
+    log = pf.read_pathfinder_mat(args.mat)
+    facts = pf.log_facts(log)
+    print(pf.format_facts(log, facts))
+    heading = facts.heading.heading_deg if args.heading is None else args.heading
+    params = pf.pathfinder_params(log, heading, args.measured_noise)
+    counts = pf.write_bag(log, args.output, progress=True)
+    print('wrote ' + ', '.join(f'{t}: {n}' for t, n in counts.items()) + f' -> {args.output}')
+    if args.params_out:
+        save_params(params, args.params_out)
+        print(f'params -> {args.params_out} (initial heading {params.initial_heading_deg:.2f} '
+              'deg)')
+    return 0
