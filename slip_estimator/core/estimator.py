@@ -90,9 +90,10 @@ class SlipEstimator:
         self.counters: dict[str, int] = {
             'imu_samples': 0, 'imu_rejected': 0, 'imu_gaps': 0, 'wheel_samples': 0,
             'wheel_rejected': 0, 'wheel_late': 0, 'zupt': 0, 'zaru': 0, 'nhc': 0,
-            'gated': 0, 'resets': 0, 'slip_estimates': 0, 'slip_unknown': 0}
+            'gated': 0, 'forced': 0, 'resets': 0, 'slip_estimates': 0, 'slip_unknown': 0}
         self.nis_mean = {'zupt': float('nan'), 'zaru': float('nan'), 'nhc': float('nan')}
         self.last_records: list[kalman.UpdateRecord] = []
+        self._rejected_in_row: dict[str, int] = {}
 
     @property
     def aligned(self) -> bool:
@@ -229,8 +230,15 @@ class SlipEstimator:
         self._acc_n = 0
 
     def _apply(self, name: str, innovation: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
-        dx, self.P, rec = kalman.update(self.P, innovation, H, R, self._gate[len(innovation)],
-                                        name)
+        # A constraint the rover's physics guarantees must not be gated out for good: after a
+        # second of consecutive rejections the filter has drifted, not the constraint, so the
+        # update is applied anyway (counted as "forced").
+        forced = self._rejected_in_row.get(name, 0) >= self.params.update_rate_hz
+        gate = float('inf') if forced else self._gate[len(innovation)]
+        dx, self.P, rec = kalman.update(self.P, innovation, H, R, gate, name)
+        self._rejected_in_row[name] = 0 if rec.accepted else self._rejected_in_row.get(name, 0) + 1
+        if forced:
+            self.counters['forced'] += 1
         self.last_records.append(rec)
         prev = self.nis_mean[name]
         self.nis_mean[name] = rec.nis if math.isnan(prev) else 0.98 * prev + 0.02 * rec.nis
