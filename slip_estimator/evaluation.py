@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from slip_estimator.core.slip import slip_class_array, slip_ratio_array
 from slip_estimator.core.types import SLIP_CLASS_NAMES, SLIP_CLASS_UPPER_BOUNDS
 
 N_CLASSES = len(SLIP_CLASS_NAMES)
@@ -45,34 +46,9 @@ SIGNIFICANT_SLIP = SLIP_CLASS_UPPER_BOUNDS[0]
 # --------------------------------------------------------------------------------------------
 # Slip maths (paper eq. 1 and 30)
 # --------------------------------------------------------------------------------------------
-def slip_ratio(v_body_mps: np.ndarray | float, v_rim_mps: np.ndarray | float) -> np.ndarray:
-    """Longitudinal slip ratio, paper eq. 1 (eq. 30 with GNSS truth speed), vectorised.
-
-    ``s = 1 - v/(r w)`` if ``v < r w``; ``s = r w / v - 1`` if ``v > r w``; 0 if equal (also
-    both zero). Driving backwards (negative rim speed) both speeds are mirrored so that the
-    same formula applies; body and wheels moving in opposite directions give ``|s| = 1``.
-    The result is clipped to [-1, 1]; NaN inputs give NaN.
-    """
-    v = np.asarray(v_body_mps, dtype=float)
-    w = np.asarray(v_rim_mps, dtype=float)
-    v, w = np.broadcast_arrays(v, w)
-    flip = (w < 0) | ((w == 0) & (v < 0))
-    v = np.where(flip, -v, v)
-    w = np.where(flip, -w, w)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        s = np.where(v < w, 1.0 - v / w, np.where(v > w, w / v - 1.0, 0.0))
-    s = np.clip(s, -1.0, 1.0)
-    return np.where(np.isnan(v) | np.isnan(w), np.nan, s)
-
-
-def slip_class(s: np.ndarray | float, moving: np.ndarray | bool) -> np.ndarray:
-    """Class index per sample: 0 when not moving, else 1..4 by |s| bounds; -1 when s is NaN."""
-    s = np.asarray(s, dtype=float)
-    moving = np.broadcast_to(np.asarray(moving, dtype=bool), s.shape)
-    a = np.abs(s)
-    cls = 1 + np.searchsorted(np.asarray(SLIP_CLASS_UPPER_BOUNDS), a, side='left')
-    cls = np.where(moving, cls, 0)
-    return np.where(np.isnan(s) & moving, -1, cls).astype(int)
+# The slip maths is the core's (paper eq. 1; eq. 30 with GNSS truth speed), vectorised.
+slip_ratio = slip_ratio_array
+slip_class = slip_class_array
 
 
 def is_moving(v_body_mps: np.ndarray, v_rim_mps: np.ndarray, threshold_mps: float) -> np.ndarray:

@@ -6,7 +6,7 @@ from typing import Any
 
 import yaml
 
-from slip_estimator.core.params import Params, ParameterError
+from slip_estimator.core.params import ParameterError, Params
 
 NODE_NAME = 'slip_estimator'
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from slip_estimator.bagio import BagWriter, read_messages
-from slip_estimator.core.params import Params, ParameterError
+from slip_estimator.core.params import ParameterError, Params
 from slip_estimator.paramfile import load_params
 from slip_estimator.ros.adapter import (
     TOPIC_IMU,

@@ -22,16 +22,25 @@ from collections import deque
 import numpy as np
 
 from slip_estimator.core import frames, kalman
-from slip_estimator.core.error_model import (curvilinear_to_ned, process_noise, system_matrix)
 from slip_estimator.core.detectors import StationaryDetector, TurnDetector
+from slip_estimator.core.error_model import (
+    curvilinear_to_ned,
+    process_noise,
+    system_matrix,
+)
 from slip_estimator.core.measurements import NonHolonomic, ZeroAngularRate, ZeroVelocity
 from slip_estimator.core.mechanization import mechanize
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, earth_rate_n, llh_to_local_enu
 from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
-from slip_estimator.core.types import (Health, ImuSample, OdometryEstimate, SlipEstimate,
-                                       WheelSample)
+from slip_estimator.core.types import (
+    Health,
+    ImuSample,
+    OdometryEstimate,
+    SlipEstimate,
+    WheelSample,
+)
 
 _NS = 1_000_000_000
 _HISTORY_S = 2.0

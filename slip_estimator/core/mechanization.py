@@ -15,8 +15,13 @@ import math
 import numpy as np
 
 from slip_estimator.core.frames import rotvec_to_dcm, skew
-from slip_estimator.core.planet import (Planet, earth_rate_n, gravity_n, radii_of_curvature,
-                                        transport_rate_n)
+from slip_estimator.core.planet import (
+    Planet,
+    earth_rate_n,
+    gravity_n,
+    radii_of_curvature,
+    transport_rate_n,
+)
 from slip_estimator.core.state import NavState
 
 

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from slip_estimator.core.types import SLIP_CLASS_UPPER_BOUNDS
 
 
@@ -44,3 +46,25 @@ def slip_class(s: float, moving: bool) -> int:
         if a <= upper:
             return k + 1
     return 4
+
+
+def slip_ratio_array(v_body_mps, v_rim_mps) -> np.ndarray:
+    """:func:`slip_ratio` vectorised (evaluation, simulator truth); NaN inputs give NaN."""
+    v, w = np.broadcast_arrays(np.asarray(v_body_mps, dtype=float),
+                               np.asarray(v_rim_mps, dtype=float))
+    flip = (w < 0) | ((w == 0) & (v < 0))
+    v = np.where(flip, -v, v)
+    w = np.where(flip, -w, w)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        s = np.where(v < w, 1.0 - v / w, np.where(v > w, w / v - 1.0, 0.0))
+    s = np.clip(s, -1.0, 1.0)
+    return np.where(np.isnan(v) | np.isnan(w), np.nan, s)
+
+
+def slip_class_array(s, moving) -> np.ndarray:
+    """:func:`slip_class` vectorised; -1 where s is NaN while moving."""
+    s = np.asarray(s, dtype=float)
+    moving = np.broadcast_to(np.asarray(moving, dtype=bool), s.shape)
+    cls = 1 + np.searchsorted(np.asarray(SLIP_CLASS_UPPER_BOUNDS), np.abs(s), side='left')
+    cls = np.where(moving, cls, 0)
+    return np.where(np.isnan(s) & moving, -1, cls).astype(int)

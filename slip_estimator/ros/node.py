@@ -45,7 +45,7 @@ from rclpy.qos import (
     ReliabilityPolicy,
 )
 
-from slip_estimator.core.params import Params, ParameterError, describe
+from slip_estimator.core.params import ParameterError, Params, describe
 from slip_estimator.ros.adapter import (
     OUTPUT_TYPES,
     TOPIC_IMU,

@@ -6,10 +6,20 @@ explicitly (``from slip_estimator.sim.bag import write_sim_bag``) so that this p
 ROS-free.
 """
 from slip_estimator.sim.rover import SimResult, simulate, slip_class, slip_ratio
-from slip_estimator.sim.scenario import (WHEEL_JOINT_NAMES, GnssConfig, HillSpec,
-                                         ImuErrorConfig, RoverConfig, ScenarioConfig, Segment,
-                                         SiteConfig, TerrainConfig, VibrationConfig,
-                                         default_scenario, short_scenario)
+from slip_estimator.sim.scenario import (
+                                         WHEEL_JOINT_NAMES,
+                                         GnssConfig,
+                                         HillSpec,
+                                         ImuErrorConfig,
+                                         RoverConfig,
+                                         ScenarioConfig,
+                                         Segment,
+                                         SiteConfig,
+                                         TerrainConfig,
+                                         VibrationConfig,
+                                         default_scenario,
+                                         short_scenario,
+)
 
 __all__ = ['SimResult', 'simulate', 'slip_class', 'slip_ratio', 'WHEEL_JOINT_NAMES',
            'GnssConfig', 'HillSpec', 'ImuErrorConfig', 'RoverConfig', 'ScenarioConfig',

@@ -27,7 +27,11 @@ from pathlib import Path
 import numpy as np
 
 from slip_estimator.sim.rover import SimResult, simulate
-from slip_estimator.sim.scenario import WHEEL_JOINT_NAMES, default_scenario, short_scenario
+from slip_estimator.sim.scenario import (
+    WHEEL_JOINT_NAMES,
+    default_scenario,
+    short_scenario,
+)
 
 TOPIC_IMU = '/imu/data'
 TOPIC_JOINTS = '/joint_states'
@@ -106,7 +110,6 @@ def write_sim_bag(result: SimResult, bag_path: str | Path,
     index = np.concatenate([np.arange(len(s)) for _, s in streams])
     order = np.lexsort((index, which, stamps))
 
-    r = cfg.rover.wheel_radius_m
     half_T = 0.5 * cfg.rover.track_width_m
     gnss_var = np.array([cfg.gnss.horizontal_std_m ** 2, cfg.gnss.horizontal_std_m ** 2,
                          cfg.gnss.vertical_std_m ** 2])

@@ -36,8 +36,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from slip_estimator.core.frames import C_ENU_NED, heading_to_yaw_enu, rpy_to_dcm
-from slip_estimator.core.planet import PLANETS, earth_rate_n, gravity_n, radii_of_curvature
-from slip_estimator.core.types import SLIP_CLASS_UPPER_BOUNDS
+from slip_estimator.core.planet import (
+    PLANETS,
+    earth_rate_n,
+    gravity_n,
+    radii_of_curvature,
+)
+from slip_estimator.core.slip import slip_class_array, slip_ratio_array
 from slip_estimator.sim.scenario import WHEEL_IS_LEFT, ScenarioConfig
 
 MOVING_SPEED_THRESHOLD_MPS = 0.02
@@ -126,22 +131,16 @@ class SimResult:
 # --- slip maths (paper eq. 1) -------------------------------------------------------------------
 
 def slip_ratio(body_speed_mps: np.ndarray, rim_speed_mps: np.ndarray) -> np.ndarray:
-    """Longitudinal slip (paper eq. 1): 1 - v/(r w) if v < r w, else r w/v - 1; 0 if both 0."""
-    v = np.asarray(body_speed_mps, dtype=float)
-    rw = np.asarray(rim_speed_mps, dtype=float)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        s = np.where(v < rw, 1.0 - v / rw, rw / v - 1.0)
-    return np.where((np.abs(v) < 1e-12) & (np.abs(rw) < 1e-12), 0.0, s)
+    """Longitudinal slip (paper eq. 1), the core's definition."""
+    return slip_ratio_array(body_speed_mps, rim_speed_mps)
 
 
 def slip_class(slip: np.ndarray, body_speed_mps: np.ndarray, rim_speed_mps: np.ndarray,
                moving_threshold_mps: float = MOVING_SPEED_THRESHOLD_MPS) -> np.ndarray:
     """Class index 0..4 (types.SLIP_CLASS_NAMES); 0 when body and rim speed are both slow."""
-    a = np.abs(np.asarray(slip, dtype=float))
-    cls = 1 + np.searchsorted(np.asarray(SLIP_CLASS_UPPER_BOUNDS), a, side='left')
     still = (np.abs(body_speed_mps) < moving_threshold_mps) & \
         (np.abs(rim_speed_mps) < moving_threshold_mps)
-    return np.where(still, 0, cls).astype(np.int64)
+    return slip_class_array(slip, ~still).astype(np.int64)
 
 
 def _slip_gain(s: np.ndarray) -> np.ndarray:
