@@ -32,6 +32,11 @@ class ImuWindow:
         self._i = 0
 
     @property
+    def n(self) -> int:
+        """Number of samples held."""
+        return self._n
+
+    @property
     def full(self) -> bool:
         """True once the window holds its nominal number of samples."""
         return self._n == len(self._buf)

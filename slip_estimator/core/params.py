@@ -63,6 +63,8 @@ class Params:
     accel_bias_psd: float = _p(1.0e-7, 'm^2/s^5', 'accelerometer bias variation PSD S_bad',
                                0.0, 1.0)
     gyro_bias_psd: float = _p(1.0e-11, 'rad^2/s^3', 'gyro bias variation PSD S_bgd', 0.0, 1.0)
+    vibration_noise_fraction: float = _p(0.1, '', 'fraction of the IMU window spread (vibration) '
+                                         'added to the white-noise model', 0.0, 10.0)
     initial_accel_bias_std: float = _p(0.05, 'm/s^2', 'initial accelerometer bias 1-sigma',
                                        1e-6, 10.0)
     initial_gyro_bias_std: float = _p(5.0e-3, 'rad/s', 'initial gyro bias 1-sigma', 1e-7, 1.0)
@@ -84,6 +86,14 @@ class Params:
                                     'sample, the reference path)', 1, 50)
     max_imu_gap_s: float = _p(0.1, 's', 'IMU gaps longer than this are reported; the state is '
                               'propagated over them with inflated uncertainty', 0.004, 60.0)
+    wheel_aid_max_slip: float = _p(0.1, '', 'wheel speed aids the forward velocity only while '
+                                   '|slip| stayed below this (0 = paper method, no aid)', 0.0, 0.2)
+    wheel_aid_hold_s: float = _p(1.0, 's', 'how long |slip| must stay low before the wheel aid '
+                                 'resumes', 0.0, 60.0)
+    wheel_aid_std: float = _p(0.02, 'm/s', 'wheel-aid measurement 1-sigma (plus half the '
+                              'allowed slip times the rim speed)', 1e-3, 1.0)
+    slip_independence_s: float = _p(2.0, 's', 'slip excludes the wheel-aid corrections of this '
+                                    'last period', 0.0, 60.0)
     innovation_gate_probability: float = _p(0.9999, '', 'chi-square gate probability for '
                                             'pseudo-measurements (1 disables the gate)', 0.9, 1.0)
     # --- detectors --------------------------------------------------------------------------------
