@@ -104,6 +104,7 @@ class SlipEstimator:
                          'wheel': float('nan')}
         self._aid_corrections: deque = deque()
         self._aid_ok_since_ns: int | None = None
+        self._aid_paused_ns: int | None = None
         self.last_records: list[kalman.UpdateRecord] = []
 
     @property
@@ -362,14 +363,16 @@ class SlipEstimator:
         return out
 
     def _recent_aid(self, stamp_ns: int) -> float:
-        """Forward-velocity corrections the wheel aid made in the last ``slip_independence_s``
-        before ``stamp_ns`` (m/s): removed from the slip velocity, so that slip never rests on
-        recent wheel speeds."""
-        horizon = stamp_ns - int(self.params.slip_independence_s * _NS)
+        """Forward-velocity corrections (m/s) the wheel aid made in the ``slip_independence_s``
+        before ``stamp_ns`` or, while the aid is paused by a slip episode, before the pause.
+        They are removed from the slip velocity: the onset of a slip episode is never hidden
+        by the aid that was still running while the slip built up."""
+        T = int(self.params.slip_independence_s * _NS)
+        end = self._aid_paused_ns if self._aid_paused_ns is not None else stamp_ns
         aid = self._aid_corrections
-        while aid and aid[0][0] < self.stamp_ns - int(self.params.slip_independence_s * _NS):
+        while aid and aid[0][0] < end - T:
             aid.popleft()
-        return sum(dv for t, dv in aid if t > horizon)
+        return sum(dv for t, dv in aid if end - T < t <= end)
 
     def _wheel_aid(self, wheel: WheelSample, v_hist: float, est: SlipEstimate) -> None:
         """Gated wheel-speed update of the forward velocity (beyond the paper).
@@ -386,12 +389,15 @@ class SlipEstimator:
             self._aid_ok_since_ns = None
             return
         if abs(est.slip_ratio) >= p.wheel_aid_max_slip or self.is_turning:
+            if self._aid_ok_since_ns is not None and self._aid_paused_ns is None:
+                self._aid_paused_ns = wheel.stamp_ns
             self._aid_ok_since_ns = None
             return
         if self._aid_ok_since_ns is None:
             self._aid_ok_since_ns = wheel.stamp_ns
         if wheel.stamp_ns - self._aid_ok_since_ns < int(p.wheel_aid_hold_s * _NS):
             return
+        self._aid_paused_ns = None
         w = wheel.rim_speed_mps
         R = np.array([[p.wheel_aid_std ** 2 + (0.5 * p.wheel_aid_max_slip * w) ** 2]])
         v_before = self._base_velocity_b(self._omega_ib_b)[0]
