@@ -410,7 +410,11 @@ class SlipEstimator:
         var_v = self._forward_speed_variance()
         var_w = p.wheel_speed_std ** 2
         w = wheel.rim_speed_mps
-        moving = abs(w) >= p.moving_speed_threshold or abs(v_body) >= p.moving_speed_threshold
+        # "Not moving" when the rim speed is below the threshold and the body speed is not
+        # significantly above it (an in-place turn or a stop must not read as extreme slip
+        # because of a few cm/s of velocity uncertainty).
+        body_threshold = max(p.moving_speed_threshold, 3.0 * math.sqrt(max(var_v, 0.0)))
+        moving = abs(w) >= p.moving_speed_threshold or abs(v_body) >= body_threshold
         s = slip_ratio(v_body, w) if moving else 0.0
         s_std = slip_ratio_std(v_body, w, var_v, var_w) if moving else 0.0
         sides = [None, None]
