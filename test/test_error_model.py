@@ -95,3 +95,37 @@ def test_process_noise_is_symmetric_positive_semidefinite():
     Q = process_noise(est, F, 0.02, 4e-8, 4e-6, 1e-7, 1e-11, EARTH)
     assert np.allclose(Q, Q.T, atol=0)
     assert np.linalg.eigvalsh(Q).min() > -1e-20
+
+
+def test_process_noise_matches_the_literal_paper_equations():
+    """Q is computed with diagonal scalings for speed; eq. 39-47 written literally must agree."""
+    from slip_estimator.core.error_model import curvilinear_to_ned
+    est = nominal_state()
+    F = system_matrix(est, np.array([0.1, 0.2, -9.8]), EARTH)
+    t, S_rg, S_ra, S_bad, S_bgd = 0.04, 4e-8, 4e-6, 1e-7, 1e-11
+    C, F21, I3 = est.C_b_n, F[3:6, 0:3], np.eye(3)
+    T = curvilinear_to_ned(EARTH, est.llh[0], est.llh[2])
+    blocks = {
+        (0, 0): (S_rg * t + S_bgd * t ** 3 / 3) * I3,
+        (1, 0): (S_rg * t ** 2 / 2 + S_bgd * t ** 4 / 4) * F21,
+        (1, 1): (S_ra * t + S_bad * t ** 3 / 3) * I3
+        + (S_rg * t ** 3 / 3 + S_bgd * t ** 5 / 5) * F21 @ F21.T,
+        (2, 0): (S_rg * t ** 3 / 3 + S_bgd * t ** 5 / 5) * T @ F21,
+        (2, 1): (S_ra * t ** 2 / 2 + S_bad * t ** 4 / 4) * T
+        + (S_rg * t ** 4 / 4 + S_bgd * t ** 6 / 6) * T @ F21 @ F21.T,
+        (2, 2): (S_ra * t ** 3 / 3 + S_bad * t ** 5 / 5) * T @ T
+        + (S_rg * t ** 5 / 5 + S_bgd * t ** 7 / 7) * T @ F21 @ F21.T @ T,
+        (2, 3): S_bad * t ** 3 / 3 * T @ C,
+        (2, 4): S_bgd * t ** 4 / 4 * T @ F21 @ C,
+        (0, 4): S_bgd * t ** 2 / 2 * C,
+        (1, 3): S_bad * t ** 2 / 2 * C,
+        (1, 4): S_bgd * t ** 3 / 3 * F21 @ C,
+        (3, 3): S_bad * t * I3,
+        (4, 4): S_bgd * t * I3,
+    }
+    Q_ref = np.zeros((N_ERR, N_ERR))
+    for (i, j), b in blocks.items():
+        Q_ref[3 * i:3 * i + 3, 3 * j:3 * j + 3] = b
+        Q_ref[3 * j:3 * j + 3, 3 * i:3 * i + 3] = b.T
+    Q = process_noise(est, F, t, S_rg, S_ra, S_bad, S_bgd, EARTH)
+    assert np.allclose(Q, Q_ref, rtol=1e-12, atol=0.0)

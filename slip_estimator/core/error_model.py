@@ -79,46 +79,38 @@ def process_noise(state: NavState, F: np.ndarray, tau_s: float, S_rg: float, S_r
     ----------
     S_rg, S_ra : gyro / accelerometer white-noise PSD, rad^2/s and m^2/s^3.
     S_bad, S_bgd : accelerometer / gyro bias-variation PSD, m^2/s^5 and rad^2/s^3.
+
+    ``T_r(n)^p`` is diagonal, so products with it are written as row / column scalings.
     """
     t = tau_s
+    t2, t3, t4, t5 = t * t, t ** 3, t ** 4, t ** 5
     C = state.C_b_n
     F21 = F[VEL, ATT]
-    T = curvilinear_to_ned(planet, state.llh[0], state.llh[2])
+    Td = np.diag(curvilinear_to_ned(planet, state.llh[0], state.llh[2]))
+    Tc = Td[:, None]  # T @ X == Tc * X ;  X @ T == X * Td
     FFt = F21 @ F21.T
+    F21C = F21 @ C
     I3 = np.eye(3)
+    a_rg2, a_rg3 = S_rg * t2 / 2.0 + S_bgd * t4 / 4.0, S_rg * t3 / 3.0 + S_bgd * t5 / 5.0
+    Q21 = a_rg2 * F21
+    Q31 = a_rg3 * Tc * F21
+    Q32 = ((S_ra * t2 / 2.0 + S_bad * t4 / 4.0) * np.diag(Td)
+           + (S_rg * t4 / 4.0 + S_bgd * t ** 6 / 6.0) * Tc * FFt)
+    Q34 = S_bad * t3 / 3.0 * Tc * C
+    Q35 = S_bgd * t4 / 4.0 * Tc * F21C
+    Q15 = S_bgd * t2 / 2.0 * C
+    Q24 = S_bad * t2 / 2.0 * C
+    Q25 = S_bgd * t3 / 3.0 * F21C
     Q = np.zeros((N_ERR, N_ERR))
-    Q11 = (S_rg * t + S_bgd * t ** 3 / 3.0) * I3
-    Q21 = (S_rg * t ** 2 / 2.0 + S_bgd * t ** 4 / 4.0) * F21
-    Q22 = (S_ra * t + S_bad * t ** 3 / 3.0) * I3 + (S_rg * t ** 3 / 3.0 + S_bgd * t ** 5 / 5.0) * FFt
-    Q31 = (S_rg * t ** 3 / 3.0 + S_bgd * t ** 5 / 5.0) * T @ F21
-    Q32 = ((S_ra * t ** 2 / 2.0 + S_bad * t ** 4 / 4.0) * T
-           + (S_rg * t ** 4 / 4.0 + S_bgd * t ** 6 / 6.0) * T @ FFt)
-    Q33 = ((S_ra * t ** 3 / 3.0 + S_bad * t ** 5 / 5.0) * T @ T
-           + (S_rg * t ** 5 / 5.0 + S_bgd * t ** 7 / 7.0) * T @ FFt @ T)
-    Q34 = S_bad * t ** 3 / 3.0 * T @ C
-    Q35 = S_bgd * t ** 4 / 4.0 * T @ F21 @ C
-    Q15 = S_bgd * t ** 2 / 2.0 * C
-    Q24 = S_bad * t ** 2 / 2.0 * C
-    Q25 = S_bgd * t ** 3 / 3.0 * F21 @ C
-    Q[ATT, ATT] = Q11
-    Q[VEL, ATT] = Q21
-    Q[ATT, VEL] = Q21.T
-    Q[VEL, VEL] = Q22
-    Q[POS, ATT] = Q31
-    Q[ATT, POS] = Q31.T
-    Q[POS, VEL] = Q32
-    Q[VEL, POS] = Q32.T
-    Q[POS, POS] = Q33
-    Q[POS, BA] = Q34
-    Q[BA, POS] = Q34.T
-    Q[POS, BG] = Q35
-    Q[BG, POS] = Q35.T
-    Q[ATT, BG] = Q15
-    Q[BG, ATT] = Q15.T
-    Q[VEL, BA] = Q24
-    Q[BA, VEL] = Q24.T
-    Q[VEL, BG] = Q25
-    Q[BG, VEL] = Q25.T
+    Q[ATT, ATT] = (S_rg * t + S_bgd * t3 / 3.0) * I3
+    Q[VEL, VEL] = (S_ra * t + S_bad * t3 / 3.0) * I3 + a_rg3 * FFt
+    Q[POS, POS] = ((S_ra * t3 / 3.0 + S_bad * t5 / 5.0) * np.diag(Td * Td)
+                   + (S_rg * t5 / 5.0 + S_bgd * t ** 7 / 7.0) * Tc * FFt * Td)
     Q[BA, BA] = S_bad * t * I3
     Q[BG, BG] = S_bgd * t * I3
+    for (r, c), block in (((VEL, ATT), Q21), ((POS, ATT), Q31), ((POS, VEL), Q32),
+                          ((POS, BA), Q34), ((POS, BG), Q35), ((ATT, BG), Q15),
+                          ((VEL, BA), Q24), ((VEL, BG), Q25)):
+        Q[r, c] = block
+        Q[c, r] = block.T
     return Q

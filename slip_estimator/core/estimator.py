@@ -61,6 +61,7 @@ class SlipEstimator:
         # Lever arm IMU -> base_link origin (the wheel-contact centre), body frame b.
         r_imu_b = frames.C_FLU_FRD @ np.asarray(p.imu_to_base_xyz, dtype=float)
         self.l_bw_b = -r_imu_b
+        self._l_bw_b = tuple(self.l_bw_b.tolist())
         self.zupt = ZeroVelocity()
         self.zaru = ZeroAngularRate(self.planet)
         self.nhc = NonHolonomic(self.planet, self.l_bw_b)
@@ -117,7 +118,7 @@ class SlipEstimator:
         """Process one IMU sample; return slip estimates that became due."""
         # 1. validate
         f_b, w_b = sample.f_ib_b, sample.omega_ib_b
-        if not (np.all(np.isfinite(f_b)) and np.all(np.isfinite(w_b))):
+        if not math.isfinite(sum(f_b.tolist()) + sum(w_b.tolist())):  # NaN/Inf anywhere
             self.counters['imu_rejected'] += 1
             return []
         if self.stamp_ns is not None and sample.stamp_ns <= self.stamp_ns:
@@ -145,12 +146,12 @@ class SlipEstimator:
         self._acc_n += 1
         self._since_update += w_b
         self._since_update_n += 1
-        # 4. covariance propagation (decimated)
+        # 4. covariance propagation (decimated), and 5. pseudo-measurements at the first
+        # propagation epoch after they are due (so an update never forces an extra propagation)
         if self._acc_n >= self.params.covariance_decimation:
             self._propagate_covariance()
-        # 5. pseudo-measurements
-        if sample.stamp_ns >= self._next_update_ns:
-            self._pseudo_measurements(sample.stamp_ns)
+            if sample.stamp_ns >= self._next_update_ns:
+                self._pseudo_measurements(sample.stamp_ns)
         self._record_history(sample.stamp_ns, w_b)
         # 6. slip
         return self._due_slip()
@@ -312,9 +313,13 @@ class SlipEstimator:
         return self.nhc.point_velocity_b(self.state, omega_ib_b)
 
     def _record_history(self, stamp_ns: int, w_b: np.ndarray) -> None:
-        v_b = self._base_velocity_b(w_b)
-        yaw_rate_b = float(w_b[2] - self.state.b_g[2])
-        self._history.append((stamp_ns, float(v_b[0]), yaw_rate_b))
+        # Forward component of NonHolonomic.point_velocity_b, in scalars (runs at IMU rate;
+        # the planet-rate part of the lever-arm term, < 3e-5 m/s, is left out).
+        st = self.state
+        wx, wy, wz = (w_b - st.b_g).tolist()
+        _, ly, lz = self._l_bw_b
+        v_fwd = float(st.C_b_n[:, 0] @ st.v_eb_n) + wy * lz - wz * ly
+        self._history.append((stamp_ns, v_fwd, wz))
         horizon = stamp_ns - int(_HISTORY_S * _NS)
         while self._history and self._history[0][0] < horizon:
             self._history.popleft()
@@ -344,8 +349,10 @@ class SlipEstimator:
         return self.P
 
     def _forward_speed_variance(self) -> float:
+        # P of the last propagation epoch (at most covariance_decimation samples old): the
+        # slip sigma does not justify an extra propagation per wheel sample.
         H = self.nhc.jacobian(self.state, (0,))
-        return float((H @ self.covariance() @ H.T)[0, 0])
+        return float((H @ self.P @ H.T)[0, 0])
 
     def _due_slip(self) -> list[SlipEstimate]:
         out: list[SlipEstimate] = []

@@ -32,6 +32,13 @@ def skew(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` for 3-vectors (np.cross costs ~30 us per call on small arrays, this ~2 us)."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def rot_x(a: float) -> np.ndarray:
     """Active rotation matrix about x by ``a`` rad."""
     c, s = math.cos(a), math.sin(a)
@@ -78,13 +85,9 @@ def rotvec_to_dcm(phi: np.ndarray) -> np.ndarray:
 
 
 def orthonormalize(C: np.ndarray) -> np.ndarray:
-    """Nearest rotation matrix (SVD), removes numerical drift of an integrated DCM."""
-    u, _, vt = np.linalg.svd(C)
-    R = u @ vt
-    if np.linalg.det(R) < 0.0:
-        u[:, -1] *= -1.0
-        R = u @ vt
-    return R
+    """Removes the numerical drift of an integrated DCM: ``C - (C C^T - I) C / 2``, the
+    first-order step towards the nearest rotation (Savage; exact to O(e^2) for an error e)."""
+    return C - 0.5 * (C @ C.T - np.eye(3)) @ C
 
 
 def dcm_to_quat_wxyz(C: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from slip_estimator.core.frames import skew
+from slip_estimator.core.frames import cross, skew
 from slip_estimator.core.planet import Planet, earth_rate_n
 from slip_estimator.core.state import ATT, BG, N_ERR, VEL, NavState
 
@@ -78,7 +78,7 @@ class NonHolonomic:
         """Velocity of the constrained point resolved in b, m/s."""
         C_n_b = state.C_b_n.T
         w_eb_b = omega_ib_b - state.b_g - C_n_b @ earth_rate_n(self.planet, state.llh[0])
-        return C_n_b @ state.v_eb_n + np.cross(w_eb_b, self.l_bw_b)
+        return C_n_b @ state.v_eb_n + cross(w_eb_b, self.l_bw_b)
 
     def innovation(self, state: NavState, omega_ib_b: np.ndarray,
                    rows: tuple[int, ...] = (1, 2)) -> np.ndarray:

@@ -82,7 +82,7 @@ class Params:
                                  2.0)
     update_rate_hz: float = _p(10.0, 'Hz', 'rate of pseudo-measurement updates (ZUPT, ZARU, '
                                'non-holonomic)', 0.5, 1000.0)
-    covariance_decimation: int = _p(5, '', 'IMU samples per covariance propagation (1 = every '
+    covariance_decimation: int = _p(10, '', 'IMU samples per covariance propagation (1 = every '
                                     'sample, the reference path)', 1, 50)
     max_imu_gap_s: float = _p(0.1, 's', 'IMU gaps longer than this are reported; the state is '
                               'propagated over them with inflated uncertainty', 0.004, 60.0)

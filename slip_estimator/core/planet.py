@@ -81,17 +81,19 @@ def surface_gravity(planet: Planet, L_rad: float) -> float:
     return planet.g_equator_mps2 * (1.0 + k * s2) / math.sqrt(1.0 - planet.e2 * s2)
 
 
-def gravity_n(planet: Planet, L_rad: float, h_m: float) -> np.ndarray:
-    """Gravity (gravitation plus centrifugal) in NED at latitude L and height h, m/s^2.
-
-    Down component per Groves eq. 2.139; the small north component (< 1e-5 m/s^2 below 1 km)
-    is neglected.
-    """
+def gravity_down(planet: Planet, L_rad: float, h_m: float) -> float:
+    """Down component of gravity (gravitation plus centrifugal) at L, h, m/s^2 (Groves eq.
+    2.139); the small north component (< 1e-5 m/s^2 below 1 km) is neglected."""
     R0 = planet.R0_m
-    f = planet.flattening
-    scale = (1.0 - (2.0 / R0) * (1.0 + f + planet.omega_ie_rps ** 2 * R0 ** 2 * planet.RP_m
-                                 / planet.GM_m3ps2) * h_m + 3.0 * h_m * h_m / (R0 * R0))
-    return np.array([0.0, 0.0, surface_gravity(planet, L_rad) * scale])
+    scale = (1.0 - (2.0 / R0) * (1.0 + planet.flattening + planet.omega_ie_rps ** 2 * R0 ** 2
+                                 * planet.RP_m / planet.GM_m3ps2) * h_m + 3.0 * h_m * h_m
+             / (R0 * R0))
+    return surface_gravity(planet, L_rad) * scale
+
+
+def gravity_n(planet: Planet, L_rad: float, h_m: float) -> np.ndarray:
+    """Gravity vector in NED at latitude L and height h, m/s^2 (see :func:`gravity_down`)."""
+    return np.array([0.0, 0.0, gravity_down(planet, L_rad, h_m)])
 
 
 def earth_rate_n(planet: Planet, L_rad: float) -> np.ndarray:
