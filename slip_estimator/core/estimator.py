@@ -44,6 +44,8 @@ from slip_estimator.core.types import (
 
 _NS = 1_000_000_000
 _HISTORY_S = 2.0
+_POSE_IDX = np.r_[POS, ATT]
+_TWIST_IDX = np.r_[VEL, BG]
 
 
 class SlipEstimator:
@@ -478,18 +480,20 @@ class SlipEstimator:
         C_base_odom = frames.body_ned_to_base_enu(st.C_b_n)
         w_b = self._omega_ib_b - st.b_g - st.C_b_n.T @ earth_rate_n(self.planet, st.llh[0])
         v_b = self._base_velocity_b(self._omega_ib_b)
-        # Covariances: position (curvilinear -> NED m -> ENU), attitude psi (NED -> ENU).
-        T_inv = np.linalg.inv(curvilinear_to_ned(self.planet, st.llh[0], st.llh[2]))
-        A = np.zeros((6, N_ERR))
-        A[0:3, POS] = frames.C_ENU_NED @ T_inv
-        A[3:6, ATT] = frames.C_ENU_NED
-        P = self.covariance()
-        pose_cov = A @ P @ A.T
-        B = np.zeros((6, N_ERR))
-        B[0:3, VEL] = frames.C_FLU_FRD @ st.C_b_n.T
-        B[3:6, BG] = frames.C_FLU_FRD
-        twist_cov = B @ P @ B.T
-        twist_cov[3:6, 3:6] += np.eye(3) * self.params.gyro_noise_density ** 2 * 250.0
+        # Covariances from P of the last propagation epoch (at most covariance_decimation
+        # samples old). Pose: position (curvilinear -> NED m -> ENU) and attitude psi (NED ->
+        # ENU); twist: velocity (NED -> base_link) and gyro bias (b -> base_link) plus noise.
+        T_inv = 1.0 / np.diag(curvilinear_to_ned(self.planet, st.llh[0], st.llh[2]))
+        M = np.zeros((6, 6))
+        M[0:3, 0:3] = frames.C_ENU_NED * T_inv
+        M[3:6, 3:6] = frames.C_ENU_NED
+        P_pa = self.P[_POSE_IDX][:, _POSE_IDX]
+        pose_cov = M @ P_pa @ M.T
+        M[0:3, 0:3] = frames.C_FLU_FRD @ st.C_b_n.T
+        M[3:6, 3:6] = frames.C_FLU_FRD
+        P_vb = self.P[_TWIST_IDX][:, _TWIST_IDX]
+        twist_cov = M @ P_vb @ M.T
+        twist_cov[3:6, 3:6] += np.eye(3) * self.params.gyro_noise_density ** 2 / self._nominal_dt
         return OdometryEstimate(self.stamp_ns, p_o, frames.dcm_to_quat_wxyz(C_base_odom),
                                 frames.C_FLU_FRD @ v_b, frames.C_FLU_FRD @ w_b,
                                 kalman.symmetrize(pose_cov), kalman.symmetrize(twist_cov))

@@ -119,7 +119,7 @@ class Params:
     wheel_timeout_s: float = _p(0.5, 's', 'without wheel data for this long slip is STALE',
                                 0.05, 60.0)
     # --- output ---------------------------------------------------------------------------------------
-    odometry_rate_hz: float = _p(50.0, 'Hz', 'rate of /slip_estimator/odometry (0 = every IMU '
+    odometry_rate_hz: float = _p(25.0, 'Hz', 'rate of /slip_estimator/odometry (0 = every IMU '
                                  'sample)', 0.0, 1000.0)
     diagnostics_period_s: float = _p(1.0, 's', 'period of /diagnostics (data time)', 0.1, 60.0)
     odom_frame: str = _p('odom', '', 'frame_id of the odometry output')

@@ -288,6 +288,265 @@ def stale_diagnostic_array(message: str, stamp_ns: int, hardware_id: str,
 
 
 # --- output guard ---------------------------------------------------------------------------------
+_INT_TYPES = frozenset({'boolean', 'octet', 'char', 'byte', 'int8', 'uint8', 'int16', 'uint16',
+                        'int32', 'uint32', 'int64', 'uint64', 'builtin_interfaces/Time',
+                        'builtin_interfaces/Duration'})
+_GUARD_PLANS: dict[type, tuple[str, ...]] = {}
+
+
+def _guard_plan(cls: type) -> tuple[str, ...]:
+    """Names of the fields of ``cls`` that can hold a float or a string (integers, stamps and
+    durations cannot be NaN), cached per message class: the guard runs on every output."""
+    plan = _GUARD_PLANS.get(cls)
+    if plan is None:
+        plan = tuple(name for name, kind in cls.get_fields_and_field_types().items()
+                     if kind.split('[')[0].removeprefix('sequence<').rstrip('>')
+                     not in _INT_TYPES)
+        _GUARD_PLANS[cls] = plan
+    return plan
+
+
+def message_is_finite(msg: Any) -> bool:
+    """True when no float field of a ROS message (recursively, arrays included) is NaN/Inf and
+    no string field spells a non-finite number ('nan', 'inf', ...).
+
+    The last line of defence before publishing: whatever the core returns, no NaN goes out.
+    """
+    for field in _guard_plan(type(msg)):
+        value = getattr(msg, field)
+        if isinstance(value, float):
+            if not math.isfinite(value):
+                return False
+        elif isinstance(value, str):
+            if not _text_is_finite(value):
+                return False
+        elif isinstance(value, np.ndarray):
+            if value.dtype.kind == 'f' and not np.isfinite(value).all():
+                return False
+        elif isinstance(value, (list, tuple)) or type(value).__name__ == 'array':
+            for item in value:
+                if isinstance(item, float):
+                    if not math.isfinite(item):
+                        return False
+                elif isinstance(item, str):
+                    if not _text_is_finite(item):
+                        return False
+                elif hasattr(item, 'get_fields_and_field_types') and not message_is_finite(item):
+                    return False
+        elif hasattr(value, 'get_fields_and_field_types'):
+            if not message_is_finite(value):
+                return False
+    return True
+
+
+# --- inputs ---------------------------------------------------------------------------------------
+def imu_from_msg(msg: Imu, C_imu_b: np.ndarray) -> ImuSample | str:
+    """Body-frame IMU sample from a REP-145 ``sensor_msgs/Imu``, or a rejection reason.
+
+    ``f_ib_b = C_imu_b @ f_ib_imu`` and ``omega_ib_b = C_imu_b @ omega_ib_imu``: the lever arm
+    does not matter for rates, and for the specific force it is ignored (rover body rates are
+    small; the mounting offset is the core's business if ever needed).
+    """
+    stamp_ns = header_stamp_ns(msg)
+    if stamp_ns == 0:
+        return REASON_ZERO_STAMP
+    a, w = msg.linear_acceleration, msg.angular_velocity
+    f_ib_imu = (a.x, a.y, a.z)
+    omega_ib_imu = (w.x, w.y, w.z)
+    if not all(math.isfinite(v) for v in f_ib_imu + omega_ib_imu):
+        return REASON_NON_FINITE
+    if (math.hypot(*f_ib_imu) > MAX_SPECIFIC_FORCE_MPS2
+            or math.hypot(*omega_ib_imu) > MAX_ANGULAR_RATE_RPS):
+        return REASON_ABSURD_IMU
+    return ImuSample(stamp_ns=stamp_ns,
+                     f_ib_b=C_imu_b @ np.array(f_ib_imu),
+                     omega_ib_b=C_imu_b @ np.array(omega_ib_imu))
+
+
+def wheel_side(joint_name: str) -> str | None:
+    """'left', 'right' or None from a joint name (case-insensitive substring)."""
+    name = joint_name.lower()
+    is_left, is_right = 'left' in name, 'right' in name
+    if is_left == is_right:
+        return None
+    return 'left' if is_left else 'right'
+
+
+def wheel_from_joint_state(msg: JointState, names: Sequence[str], radius: float, *,
+                           max_speed_mps: float = math.inf) -> WheelSample | str:
+    """Rim speeds ``r * omega`` from the wheel joint velocities of a ``sensor_msgs/JointState``.
+
+    ``names`` are the driven wheels (rad/s, forward positive). Wheels listed in ``names`` but
+    absent from the message are left out of the means (several publishers may share
+    ``/joint_states``); a message without any of them is rejected as ``'no_wheel_joints'``.
+    The per-side means use the joints whose name contains 'left' / 'right'.
+    """
+    stamp_ns = header_stamp_ns(msg)
+    if stamp_ns == 0:
+        return REASON_ZERO_STAMP
+    index = {n: i for i, n in enumerate(msg.name)}
+    present = [n for n in names if n in index]
+    if not present:
+        return REASON_NO_WHEEL_JOINTS
+    velocity = msg.velocity
+    if len(velocity) != len(msg.name):
+        return REASON_NO_VELOCITY
+    speeds = [radius * float(velocity[index[n]]) for n in present]
+    if not all(math.isfinite(v) for v in speeds):
+        return REASON_NON_FINITE
+    if max(abs(v) for v in speeds) > max_speed_mps:
+        return REASON_ABSURD_SPEED
+    left = [v for n, v in zip(present, speeds) if wheel_side(n) == 'left']
+    right = [v for n, v in zip(present, speeds) if wheel_side(n) == 'right']
+    return WheelSample(stamp_ns=stamp_ns,
+                       rim_speed_mps=sum(speeds) / len(speeds),
+                       rim_speed_left_mps=sum(left) / len(left) if left else None,
+                       rim_speed_right_mps=sum(right) / len(right) if right else None)
+
+
+def wheel_from_odometry(msg: Odometry, track: float, *,
+                        max_speed_mps: float = math.inf) -> WheelSample | str:
+    """Rim speeds from a wheel-odometry ``nav_msgs/Odometry`` (differential-drive model).
+
+    ``twist.twist.linear.x`` is the mean rim speed v (m/s) and ``angular.z`` the yaw rate w
+    (rad/s, FLU so counter-clockwise positive): ``v_left = v - w*track/2``,
+    ``v_right = v + w*track/2``.
+    """
+    stamp_ns = header_stamp_ns(msg)
+    if stamp_ns == 0:
+        return REASON_ZERO_STAMP
+    v = float(msg.twist.twist.linear.x)
+    w = float(msg.twist.twist.angular.z)
+    if not (math.isfinite(v) and math.isfinite(w)):
+        return REASON_NON_FINITE
+    left, right = v - 0.5 * w * track, v + 0.5 * w * track
+    if max(abs(v), abs(left), abs(right)) > max_speed_mps:
+        return REASON_ABSURD_SPEED
+    return WheelSample(stamp_ns=stamp_ns, rim_speed_mps=v, rim_speed_left_mps=left,
+                       rim_speed_right_mps=right)
+
+
+# --- outputs --------------------------------------------------------------------------------------
+def format_value(value: Any) -> str:
+    """Text of a diagnostic value: numbers as '%.6g', non-finite numbers as 'unknown'.
+
+    Sequences and arrays become '[a, b, c]' element-wise; None becomes 'unknown'.
+    """
+    if value is None:
+        return UNKNOWN
+    if isinstance(value, (bool, np.bool_)):
+        return 'true' if value else 'false'
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return f'{float(value):.6g}' if math.isfinite(value) else UNKNOWN
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (np.ndarray, list, tuple)):
+        return '[' + ', '.join(format_value(v) for v in np.asarray(value).ravel().tolist()) + ']'
+    return str(value)
+
+
+def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
+    """KeyValues of a mapping, values formatted with :func:`format_value`."""
+    return [KeyValue(key=str(k), value=format_value(v)) for k, v in values.items()]
+
+
+def odometry_to_msg(odo: OdometryEstimate, odom_frame: str, base_frame: str) -> Odometry:
+    """``nav_msgs/Odometry`` of the fused solution (pose in odom, twist in base_link)."""
+    msg = Odometry()
+    msg.header.stamp = ns_to_stamp(odo.stamp_ns)
+    msg.header.frame_id = odom_frame
+    msg.child_frame_id = base_frame
+    p = msg.pose.pose.position
+    p.x, p.y, p.z = (float(v) for v in odo.p_ob_o)
+    q = msg.pose.pose.orientation
+    q.w, q.x, q.y, q.z = (float(v) for v in odo.q_ob_wxyz)
+    lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
+    lin.x, lin.y, lin.z = (float(v) for v in odo.v_ob_b)
+    ang.x, ang.y, ang.z = (float(v) for v in odo.omega_ob_b)
+    msg.pose.covariance = np.asarray(odo.pose_covariance, dtype=float).reshape(36)
+    msg.twist.covariance = np.asarray(odo.twist_covariance, dtype=float).reshape(36)
+    return msg
+
+
+def slip_level(slip_class: int) -> bytes:
+    """Diagnostic level of a slip class: OK none/low, WARN medium, ERROR high/extreme,
+    STALE unknown."""
+    return _SLIP_LEVEL_BY_CLASS.get(slip_class, DiagnosticStatus.STALE)
+
+
+def slip_to_diagnostic_array(est: SlipEstimate, hardware_id: str) -> DiagnosticArray:
+    """One-status ``DiagnosticArray`` stamped with the wheel sample time of ``est``."""
+    values: dict[str, Any] = {
+        'slip_ratio': est.slip_ratio,
+        'slip_class': est.slip_class if est.slip_class >= 0 else None,
+        'slip_ratio_std': est.slip_ratio_std,
+        'body_speed': est.body_speed_mps,
+        'body_speed_std': est.body_speed_std_mps,
+        'wheel_speed': est.wheel_speed_mps,
+    }
+    if est.slip_ratio_left is not None:
+        values['slip_ratio_left'] = est.slip_ratio_left
+    if est.slip_ratio_right is not None:
+        values['slip_ratio_right'] = est.slip_ratio_right
+    status = DiagnosticStatus(level=slip_level(est.slip_class), name=SLIP_STATUS_NAME,
+                              message=est.class_name, hardware_id=hardware_id,
+                              values=key_values(values))
+    msg = DiagnosticArray(status=[status])
+    msg.header.stamp = ns_to_stamp(est.stamp_ns)
+    return msg
+
+
+def slip_is_known(est: SlipEstimate) -> bool:
+    """True when the estimate has a class and finite slip ratio and 1-sigma."""
+    return (est.slip_class >= 0 and math.isfinite(est.slip_ratio)
+            and math.isfinite(est.slip_ratio_std))
+
+
+def slip_to_vector3(est: SlipEstimate, frame_id: str) -> Vector3Stamped | None:
+    """Numeric companion of the slip status: x = slip ratio, y = its 1-sigma, z = class index.
+
+    None when the estimate is unknown (nothing is published then).
+    """
+    if not slip_is_known(est):
+        return None
+    msg = Vector3Stamped()
+    msg.header.stamp = ns_to_stamp(est.stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.vector.x = float(est.slip_ratio)
+    msg.vector.y = float(est.slip_ratio_std)
+    msg.vector.z = float(est.slip_class)
+    return msg
+
+
+def health_to_diagnostic_array(health: Health, stamp_ns: int, hardware_id: str,
+                               extra_values: Mapping[str, Any] | None = None, *,
+                               name: str = HEALTH_STATUS_NAME) -> DiagnosticArray:
+    """``/diagnostics`` message: the estimator's Health plus ``extra_values`` (node counters)."""
+    values = dict(health.values)
+    if extra_values:
+        values.update(extra_values)
+    level = max(DiagnosticStatus.OK[0], min(int(health.level), DiagnosticStatus.STALE[0]))
+    status = DiagnosticStatus(level=bytes([level]), name=name, message=health.message,
+                              hardware_id=hardware_id, values=key_values(values))
+    msg = DiagnosticArray(status=[status])
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    return msg
+
+
+def stale_diagnostic_array(message: str, stamp_ns: int, hardware_id: str,
+                           values: Mapping[str, Any] | None = None) -> DiagnosticArray:
+    """A STALE ``/diagnostics`` status (live node: no IMU data)."""
+    status = DiagnosticStatus(level=DiagnosticStatus.STALE, name=HEALTH_STATUS_NAME,
+                              message=message, hardware_id=hardware_id,
+                              values=key_values(values or {}))
+    msg = DiagnosticArray(status=[status])
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    return msg
+
+
+# --- output guard ---------------------------------------------------------------------------------
 def message_is_finite(msg: Any) -> bool:
     """True when no float field of a ROS message (recursively, arrays included) is NaN/Inf and
     no string field spells a non-finite number ('nan', 'inf', ...).

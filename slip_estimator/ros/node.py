@@ -24,15 +24,26 @@ every value is validated once, by Params. An invalid start-up value logs the par
 and allowed range and ``main`` returns 2. Runtime changes are validated the same way (invalid
 ones are rejected with that message); valid ones take effect at the next estimator reset (see
 the adapter). ``wheel_input`` cannot change at runtime: it decides the subscriptions.
+
+Callback latency
+----------------
+Every ``/imu/data`` callback (convert, core step, building and publishing the outputs) is timed
+with ``time.perf_counter`` into a ring buffer of the last ``CALLBACK_WINDOW`` callbacks; each
+``/diagnostics`` status the node publishes carries ``callback_p50_ms``, ``callback_p99_ms`` and
+``callback_max_ms`` over that window and ``callback_window`` (callbacks in it); ``unknown``
+before the first callback. ``slip-estimator bench --only live`` reads them.
 """
 from __future__ import annotations
 
 import dataclasses
 import sys
 import time
+from collections import deque
 from typing import Any
 
+import numpy as np
 import rclpy
+from diagnostic_msgs.msg import KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
@@ -48,6 +59,7 @@ from rclpy.qos import (
 from slip_estimator.core.params import ParameterError, Params, describe
 from slip_estimator.ros.adapter import (
     OUTPUT_TYPES,
+    TOPIC_DIAGNOSTICS,
     TOPIC_IMU,
     TOPIC_SLIP,
     TOPIC_SLIP_RATIO,
@@ -60,6 +72,8 @@ IMU_QUEUE_DEPTH = 500
 WHEEL_QUEUE_DEPTH = 100
 STALE_AFTER_S = 1.0
 """The watchdog reports STALE 'no IMU data' when no IMU message arrived for this long (wall)."""
+CALLBACK_WINDOW = 15000
+"""IMU callback durations kept for the ``callback_*_ms`` diagnostics (60 s at 250 Hz)."""
 
 
 def input_qos(depth: int) -> QoSProfile:
@@ -129,6 +143,7 @@ class SlipEstimatorNode(Node):
             f'{", ".join(OUTPUT_TYPES)}')
 
         self._last_imu_wall = time.monotonic()
+        self._imu_callback_s: deque[float] = deque(maxlen=CALLBACK_WINDOW)
         self._watchdog = self.create_timer(
             STALE_AFTER_S, self._check_imu_stale, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -137,6 +152,7 @@ class SlipEstimatorNode(Node):
         handle = self.adapter.on_message
 
         def callback(msg: Any) -> None:
+            t0 = time.perf_counter()
             if topic == TOPIC_IMU:
                 self._last_imu_wall = time.monotonic()
             try:
@@ -145,11 +161,30 @@ class SlipEstimatorNode(Node):
                 self.adapter.count_exception(topic)
                 self.get_logger().error(f'{topic} callback failed: {exc!r}',
                                         throttle_duration_sec=5.0)
+            if topic == TOPIC_IMU:
+                self._imu_callback_s.append(time.perf_counter() - t0)
         return callback
 
     def _publish(self, outputs: list[Output]) -> None:
         for topic, msg in outputs:
+            if topic == TOPIC_DIAGNOSTICS:
+                self._add_callback_stats(msg)
             self._pubs[topic].publish(msg)
+
+    def _add_callback_stats(self, msg: Any) -> None:
+        """Append the IMU callback duration percentiles to every status of a DiagnosticArray."""
+        n = len(self._imu_callback_s)
+        if n:
+            ms = np.fromiter(self._imu_callback_s, dtype=float, count=n) * 1e3
+            p50, p99 = np.percentile(ms, (50.0, 99.0))
+            stats = [f'{p50:.3f}', f'{p99:.3f}', f'{ms.max():.3f}']
+        else:
+            stats = ['unknown'] * 3
+        values = [KeyValue(key=k, value=v) for k, v in zip(
+            ('callback_p50_ms', 'callback_p99_ms', 'callback_max_ms'), stats)]
+        values.append(KeyValue(key='callback_window', value=str(n)))
+        for status in msg.status:
+            status.values = list(status.values) + values
 
     def _check_imu_stale(self) -> None:
         if time.monotonic() - self._last_imu_wall > STALE_AFTER_S:
