@@ -241,28 +241,28 @@ class _TimedEstimatorFactory:
         factory = self
 
         class Timed(SlipEstimator):
-            def add_imu(self, sample):  # noqa: ANN001, ANN202
+            def add_imu(self, sample: Any) -> Any:
                 t0 = time.perf_counter()
                 try:
                     return super().add_imu(sample)
                 finally:
                     factory.core_s += time.perf_counter() - t0
 
-            def add_wheel(self, sample):  # noqa: ANN001, ANN202
+            def add_wheel(self, sample: Any) -> Any:
                 t0 = time.perf_counter()
                 try:
                     return super().add_wheel(sample)
                 finally:
                     factory.core_s += time.perf_counter() - t0
 
-            def odometry(self):  # noqa: ANN202
+            def odometry(self) -> Any:
                 t0 = time.perf_counter()
                 try:
                     return super().odometry()
                 finally:
                     factory.core_s += time.perf_counter() - t0
 
-            def health(self):  # noqa: ANN202
+            def health(self) -> Any:
                 t0 = time.perf_counter()
                 try:
                     return super().health()
@@ -423,6 +423,7 @@ def bench_live(args: argparse.Namespace) -> dict[str, Any]:
                   'node_inputs': 'BEST_EFFORT, VOLATILE, KEEP_LAST 500 (IMU), 100 (wheels)',
                   'listener': LIVE_OUT_QOS}
     res['domain_id'] = domain_id
+    res['odometry_rate_hz'] = params.odometry_rate_hz
     return res
 
 
@@ -458,8 +459,8 @@ def live_worker(args: argparse.Namespace) -> int:
     wheel_rates = result.wheel_rate_rps.tolist()
     wheel_angles = result.wheel_angle_rad.tolist()
     n_imu, n_wheel = len(f_imu), len(wheel_rates)
-    per_wheel = int(round(cfg.rate_imu_hz / cfg.rate_wheel_hz))
-    n_send = int(round(args.live_duration_s * cfg.rate_imu_hz))
+    per_wheel = round(cfg.rate_imu_hz / cfg.rate_wheel_hz)
+    n_send = round(args.live_duration_s * cfg.rate_imu_hz)
     del result
 
     best_effort = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
@@ -597,7 +598,7 @@ def bench_memory(args: argparse.Namespace) -> dict[str, Any]:
             [sys.executable, '-m', 'slip_estimator.bench', '--worker', 'memory',
              '--memory-duration-s', str(args.memory_duration_s),
              '--memory-sample-s', str(args.memory_sample_s), '--worker-out', str(out)],
-            capture_output=True, text=True)
+            check=False, capture_output=True, text=True)
         if proc.returncode != 0 or not out.exists():
             raise RuntimeError(f'memory worker failed ({proc.returncode}):\n{proc.stderr[-3000:]}')
         return json.loads(out.read_text())
@@ -668,8 +669,8 @@ def memory_verdict(res: dict[str, Any], tolerance_mb: float = 5.0) -> tuple[floa
         else samples[0]
     growth = samples[-1]['rss_mb'] - ref['rss_mb']
     flat = 'flat' if abs(growth) <= tolerance_mb else 'GROWING' if growth > 0 else 'shrinking'
-    return growth, f'{flat} ({growth:+.1f} MiB from {ref["data_s"]:.0f} s to ' \
-        f'{samples[-1]["data_s"]:.0f} s of data; tolerance {tolerance_mb:.0f} MiB)'
+    return growth, (f'{flat} ({growth:+.1f} MiB from {ref["data_s"]:.0f} s to '
+                    f'{samples[-1]["data_s"]:.0f} s of data; tolerance {tolerance_mb:.0f} MiB)')
 
 
 # --- scaling ------------------------------------------------------------------------------------
@@ -715,7 +716,7 @@ def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], left: int = 1)
 
 def _fmt(value: Any) -> str:
     if isinstance(value, float):
-        if value != value:
+        if np.isnan(value):
             return 'n/a'
         if abs(value) >= 1000:
             return f'{value:,.0f}'
@@ -772,21 +773,22 @@ def print_live(res: dict[str, Any]) -> None:
         ('publisher late sends (max ms)',
          f'{res["publisher_late"]} ({res["publisher_max_late_ms"]:.2f})'),
         ('IMU callback p50 / p99 / max ms',
-         f'{_fmt(res["callback_p50_ms"])} / {_fmt(res["callback_p99_ms"])} / '
-         f'{_fmt(res["callback_max_ms"])} (last {res["callback_window"]:.0f} callbacks)'),
+         (f'{_fmt(res["callback_p50_ms"])} / {_fmt(res["callback_p99_ms"])} / '
+          f'{_fmt(res["callback_max_ms"])} (last {res["callback_window"]:.0f} callbacks)')),
         ('end-to-end IMU stamp -> odometry p50 / p99 / max ms',
-         f'{_fmt(e2e["p50_ms"])} / {_fmt(e2e["p99_ms"])} / {_fmt(e2e["max_ms"])} '
-         f'({e2e["n"]} odometry messages)'),
+         (f'{_fmt(e2e["p50_ms"])} / {_fmt(e2e["p99_ms"])} / {_fmt(e2e["max_ms"])} '
+          f'({e2e["n"]} odometry messages)')),
         ('node CPU, % of one core', res.get('node_cpu_percent_of_one_core', float('nan'))),
-        ('node RSS / peak MiB', f'{_fmt(res.get("node_rss_mb", float("nan")))} / '
-                                f'{_fmt(res.get("node_peak_rss_mb", float("nan")))}'),
+        ('node RSS / peak MiB', (f'{_fmt(res.get("node_rss_mb", float("nan")))} / '
+                                 f'{_fmt(res.get("node_peak_rss_mb", float("nan")))}')),
     ]
     print(_table(('figure', 'value'), rows, left=2))
     q = res['qos']
     print(f'  QoS: publisher IMU {q["imu_publisher"]}, JointState {q["wheel_publisher"]}; node '
           f'inputs {q["node_inputs"]}; listener {q["listener"]}')
-    print('  odometry at the node default odometry_rate_hz = 50 (every 5th IMU stamp); '
-          'counters from the node\'s final /diagnostics (watchdog STALE report)')
+    print(f'  odometry at the node default odometry_rate_hz = {res["odometry_rate_hz"]:g} '
+          '(latency measured on those IMU stamps); counters from the node\'s final '
+          '/diagnostics (watchdog STALE report)')
 
 
 def print_memory(res: dict[str, Any]) -> None:

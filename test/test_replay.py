@@ -141,8 +141,10 @@ def test_replay_outputs_present_and_counted(replayed):
         '/slip_estimator/slip': 'diagnostic_msgs/msg/DiagnosticArray',
         '/slip_estimator/slip_ratio': 'geometry_msgs/msg/Vector3Stamped',
         '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray'}
-    # Odometry at 50 Hz of data time once aligned, diagnostics every 1 s from the first sample.
-    assert 17 * 50 <= summary.outputs['/slip_estimator/odometry'] <= 20 * 50
+    # Odometry at odometry_rate_hz of data time once aligned, diagnostics every 1 s from the
+    # first sample.
+    rate = synthetic_params().odometry_rate_hz
+    assert 17 * rate <= summary.outputs['/slip_estimator/odometry'] <= 20 * rate
     assert summary.outputs['/diagnostics'] == 20
     # One slip status per wheel sample (allow the last few to be still pending in the core).
     assert 990 <= summary.outputs['/slip_estimator/slip'] <= 1000
