@@ -31,7 +31,7 @@ from slip_estimator.core.error_model import (
 from slip_estimator.core.measurements import NonHolonomic, ZeroAngularRate, ZeroVelocity
 from slip_estimator.core.mechanization import mechanize
 from slip_estimator.core.params import Params
-from slip_estimator.core.planet import PLANETS, earth_rate_n, llh_to_local_enu
+from slip_estimator.core.planet import PLANETS, earth_rate_n, gravity_n, llh_to_local_enu
 from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
 from slip_estimator.core.types import (
@@ -44,6 +44,7 @@ from slip_estimator.core.types import (
 
 _NS = 1_000_000_000
 _HISTORY_S = 2.0
+_MAX_PENDING_WHEEL = 50
 _POSE_IDX = np.r_[POS, ATT]
 _TWIST_IDX = np.r_[VEL, BG]
 
@@ -70,6 +71,13 @@ class SlipEstimator:
         self.turn = TurnDetector(p.turn_rate_threshold)
         self._gate = {k: kalman.chi2_threshold(k, p.innovation_gate_probability)
                       for k in (1, 2, 3)}
+        # Counters survive filter resets: they are the node's record of what happened.
+        self.counters: dict[str, int] = dict.fromkeys((
+            'imu_samples', 'imu_rejected', 'imu_gaps', 'imu_saturated', 'wheel_samples',
+            'wheel_rejected', 'wheel_late', 'wheel_future', 'zupt', 'zaru', 'nhc', 'wheel',
+            'gated', 'resets', 'recoveries', 'divergence_resets', 'covariance_repairs',
+            'slip_estimates', 'slip_unknown'), 0)
+        self._events: deque = deque(maxlen=20)
         self._S = (p.gyro_noise_density ** 2, p.accel_noise_density ** 2, p.accel_bias_psd,
                    p.gyro_bias_psd)
         self._reset_filter()
@@ -99,10 +107,7 @@ class SlipEstimator:
         self._last_stale_ns: int | None = None
         self.is_stationary = False
         self.is_turning = False
-        self.counters: dict[str, int] = {
-            'imu_samples': 0, 'imu_rejected': 0, 'imu_gaps': 0, 'wheel_samples': 0,
-            'wheel_rejected': 0, 'wheel_late': 0, 'zupt': 0, 'zaru': 0, 'nhc': 0, 'wheel': 0,
-            'gated': 0, 'resets': 0, 'slip_estimates': 0, 'slip_unknown': 0}
+        self._recovering_until_ns: int | None = None
         self.nis_mean = {'zupt': float('nan'), 'zaru': float('nan'), 'nhc': float('nan'),
                          'wheel': float('nan')}
         self._aid_corrections: deque = deque()
@@ -133,8 +138,14 @@ class SlipEstimator:
         if prev_ns is None:
             return self._slip_before_alignment()
         dt = (sample.stamp_ns - prev_ns) * 1e-9
+        self._check_saturation(f_b, w_b)
         if dt > self.params.max_imu_gap_s:
             self.counters['imu_gaps'] += 1
+            self._event(f'IMU gap of {dt:.2f} s')
+            if self.state is not None and dt > self.params.recovery_gap_s:
+                # Not integrated across: one sample says nothing about minutes of motion.
+                self._recover(sample.stamp_ns, dt, 'IMU gap')
+                return self._due_slip()
         else:
             self._nominal_dt = 0.99 * self._nominal_dt + 0.01 * dt
         # 2. alignment
@@ -154,6 +165,9 @@ class SlipEstimator:
             self._propagate_covariance()
             if sample.stamp_ns >= self._next_update_ns:
                 self._pseudo_measurements(sample.stamp_ns)
+                self._check_filter_health(sample.stamp_ns)
+                if self.state is None:
+                    return []
         self._record_history(sample.stamp_ns, w_b)
         # 6. slip
         return self._due_slip()
@@ -174,9 +188,79 @@ class SlipEstimator:
         self._last_stale_ns = None
         self.stationary.add_wheel(sample.stamp_ns, max(abs(v) for v in speeds))
         self._pending.append(sample)
+        if len(self._pending) > _MAX_PENDING_WHEEL:
+            # Wheel stamps far ahead of the IMU (clock offset or IMU dropout): keep the newest.
+            self._pending.popleft()
+            self.counters['wheel_future'] += 1
         if self.state is None:
             return self._slip_before_alignment()
         return self._due_slip()
+
+    # ------------------------------------------------------------------ faults and recovery
+    def _event(self, text: str) -> None:
+        self._events.append((self.stamp_ns, text))
+
+    def _check_saturation(self, f_b: np.ndarray, w_b: np.ndarray) -> None:
+        p = self.params
+        if ((p.accel_range_mps2 > 0.0 and float(np.abs(f_b).max()) >= 0.999 * p.accel_range_mps2)
+                or (p.gyro_range_rps > 0.0
+                    and float(np.abs(w_b).max()) >= 0.999 * p.gyro_range_rps)):
+            self.counters['imu_saturated'] += 1
+            self._event('IMU at its measurement range (clipping)')
+
+    def _recover(self, stamp_ns: int, gap_s: float, reason: str) -> None:
+        """Re-initialise velocity and inflate the covariance after an IMU gap or a divergence.
+
+        Attitude and position are kept (a rover does not teleport, but it may have moved for
+        ``gap_s``); velocity restarts from the last wheel speed; slip is "unknown" until
+        ``recovery_s`` has passed and the wheel aid has re-anchored the velocity."""
+        p = self.params
+        st = self.state
+        self.counters['recoveries'] += 1
+        self._event(f'{reason}: velocity re-initialised, slip unknown for {p.recovery_s:.0f} s')
+        rim = self._pending[-1].rim_speed_mps if self._pending else 0.0
+        st.v_eb_n = st.C_b_n[:, 0] * rim
+        st.C_b_n = frames.orthonormalize(st.C_b_n)
+        P = self._initial_covariance(-gravity_n(self.planet, st.llh[0], st.llh[2]))
+        T = curvilinear_to_ned(self.planet, st.llh[0], st.llh[2])
+        d = np.diag(P).copy()
+        d[VEL] = 1.0
+        d[POS] = (np.diag(T) * (0.01 + p.max_wheel_speed_mps * gap_s)) ** 2
+        self.P = np.diag(d)
+        self._acc_tau, self._acc_f_n, self._acc_n = 0.0, np.zeros(3), 0
+        self._history.clear()
+        self._aid_corrections.clear()
+        self._aid_ok_since_ns = self._aid_paused_ns = None
+        self._recovering_until_ns = stamp_ns + int(p.recovery_s * _NS)
+        self._next_update_ns = stamp_ns
+
+    def _check_filter_health(self, stamp_ns: int) -> None:
+        """Covariance must stay finite, symmetric and positive definite; the state must stay
+        within physical bounds. Repair what can be repaired, otherwise re-initialise."""
+        p = self.params
+        if not (np.isfinite(self.P).all() and np.isfinite(self.state.v_eb_n).all()
+                and np.isfinite(self.state.C_b_n).all() and np.isfinite(self.state.llh).all()):
+            self.counters['resets'] += 1
+            self._event('non-finite filter state: full reset, re-aligning')
+            self._reset_filter()
+            return
+        d = np.diag(self.P)
+        if d.min() <= 0.0:
+            w, V = np.linalg.eigh(kalman.symmetrize(self.P))
+            self.P = kalman.symmetrize((V * np.maximum(w, 1e-18)) @ V.T)
+            self.counters['covariance_repairs'] += 1
+            self._event('covariance lost positive definiteness: repaired')
+        st = self.state
+        speed = float(np.linalg.norm(st.v_eb_n))
+        bias_out = (np.abs(st.b_a).max() > 10.0 * p.initial_accel_bias_std
+                    or np.abs(st.b_g).max() > 10.0 * p.initial_gyro_bias_std)
+        if speed > 2.0 * p.max_wheel_speed_mps or bias_out:
+            self.counters['divergence_resets'] += 1
+            if bias_out:
+                st.b_a = np.clip(st.b_a, -p.initial_accel_bias_std, p.initial_accel_bias_std)
+                st.b_g = np.clip(st.b_g, -p.initial_gyro_bias_std, p.initial_gyro_bias_std)
+            self._recover(stamp_ns, 0.0, 'divergence (speed %.1f m/s%s)' % (
+                speed, ', biases out of bounds' if bias_out else ''))
 
     # ------------------------------------------------------------------ alignment
     def _collect_alignment(self, f_b: np.ndarray, w_b: np.ndarray, stamp_ns: int) -> None:
@@ -365,11 +449,23 @@ class SlipEstimator:
                 self.counters['wheel_late'] += 1
                 continue
             v_hist, yaw_rate_b = at
+            if self._recovering(wheel.stamp_ns):
+                self._wheel_aid(wheel, v_hist, None)
+                out.append(self._unknown(wheel.stamp_ns, wheel.rim_speed_mps))
+                continue
             est = self._slip(wheel, v_hist - self._recent_aid(wheel.stamp_ns), yaw_rate_b)
             out.append(est)
             self._wheel_aid(wheel, v_hist, est)
         out.extend(self._stale_check())
         return out
+
+    def _recovering(self, stamp_ns: int) -> bool:
+        if self._recovering_until_ns is None:
+            return False
+        if stamp_ns >= self._recovering_until_ns:
+            self._recovering_until_ns = None
+            return False
+        return True
 
     def _recent_aid(self, stamp_ns: int) -> float:
         """Forward-velocity corrections (m/s) the wheel aid made in the ``slip_independence_s``
@@ -383,7 +479,7 @@ class SlipEstimator:
             aid.popleft()
         return sum(dv for t, dv in aid if end - T < t <= end)
 
-    def _wheel_aid(self, wheel: WheelSample, v_hist: float, est: SlipEstimate) -> None:
+    def _wheel_aid(self, wheel: WheelSample, v_hist: float, est: SlipEstimate | None) -> None:
         """Gated wheel-speed update of the forward velocity (beyond the paper).
 
         The paper's pseudo-measurements leave forward velocity unobservable between stops, so
@@ -394,6 +490,10 @@ class SlipEstimator:
         episode. Corrections are recorded so that the reported slip excludes the last
         ``slip_independence_s`` of aid (see :meth:`_recent_aid`)."""
         p = self.params
+        if est is None:  # recovering: re-anchor the velocity on the wheels (slip is unknown)
+            if not self.is_turning and p.wheel_aid_max_slip > 0.0:
+                self._aid_update(wheel.rim_speed_mps, v_hist)
+            return
         if p.wheel_aid_max_slip <= 0.0 or est.slip_class <= 0:
             self._aid_ok_since_ns = None
             return
@@ -407,7 +507,10 @@ class SlipEstimator:
         if wheel.stamp_ns - self._aid_ok_since_ns < int(p.wheel_aid_hold_s * _NS):
             return
         self._aid_paused_ns = None
-        w = wheel.rim_speed_mps
+        self._aid_update(wheel.rim_speed_mps, v_hist)
+
+    def _aid_update(self, w: float, v_hist: float) -> None:
+        p = self.params
         R = np.array([[p.wheel_aid_std ** 2 + (0.5 * p.wheel_aid_max_slip * w) ** 2]])
         v_before = self._base_velocity_b(self._omega_ib_b)[0]
         self._apply('wheel', np.array([w - v_hist]), self.nhc.jacobian(self.state, (0,)), R)
@@ -502,7 +605,9 @@ class SlipEstimator:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""
         values: dict = dict(self.counters)
         if self.state is None:
-            return Health(1, 'aligning: waiting for a stationary window', values)
+            recent = '; '.join(dict.fromkeys(text for _, text in self._events))
+            return Health(1, 'aligning: waiting for a stationary window'
+                          + (f' (after: {recent})' if recent else ''), values)
         st = self.state
         sig = np.sqrt(np.maximum(np.diag(self.P), 0.0))
         values.update({
@@ -526,4 +631,12 @@ class SlipEstimator:
         if np.any(np.abs(st.b_a) > 5.0 * self.params.initial_accel_bias_std):
             level = 1
             notes.append('accelerometer bias estimate beyond 5 sigma of its prior')
-        return Health(level, 'running' + (': ' + '; '.join(notes) if notes else ''), values)
+        recent = [text for t, text in self._events
+                  if t is not None and self.stamp_ns - t <= 10 * _NS]
+        if recent:
+            level = max(level, 1)
+            notes = list(dict.fromkeys(recent)) + notes
+        if self._recovering_until_ns is not None:
+            level = max(level, 1)
+        state = 'recovering' if self._recovering_until_ns is not None else 'running'
+        return Health(level, state + (': ' + '; '.join(notes) if notes else ''), values)

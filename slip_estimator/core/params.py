@@ -84,8 +84,15 @@ class Params:
                                'non-holonomic)', 0.5, 1000.0)
     covariance_decimation: int = _p(10, '', 'IMU samples per covariance propagation (1 = every '
                                     'sample, the reference path)', 1, 50)
-    max_imu_gap_s: float = _p(0.1, 's', 'IMU gaps longer than this are reported; the state is '
-                              'propagated over them with inflated uncertainty', 0.004, 60.0)
+    max_imu_gap_s: float = _p(0.1, 's', 'IMU gaps longer than this are reported', 0.004, 60.0)
+    recovery_gap_s: float = _p(1.0, 's', 'after an IMU gap longer than this the velocity is '
+                               're-initialised (not integrated across the gap)', 0.01, 600.0)
+    recovery_s: float = _p(3.0, 's', 'after a gap or divergence reset slip is unknown for this '
+                           'long while the velocity re-anchors', 0.0, 60.0)
+    accel_range_mps2: float = _p(0.0, 'm/s^2', 'accelerometer measurement range, for clipping '
+                                 'detection (0 = unknown)', 0.0, 10000.0)
+    gyro_range_rps: float = _p(0.0, 'rad/s', 'gyro measurement range, for clipping detection '
+                               '(0 = unknown)', 0.0, 1000.0)
     wheel_aid_max_slip: float = _p(0.1, '', 'wheel speed aids the forward velocity only while '
                                    '|slip| stayed below this (0 = paper method, no aid)', 0.0, 0.2)
     wheel_aid_hold_s: float = _p(1.0, 's', 'how long |slip| must stay low before the wheel aid '
