@@ -61,7 +61,8 @@ def machine_info() -> dict[str, Any]:
     except OSError:
         pass
     return {'cpu_model': model, 'cores': os.cpu_count(), 'python': platform.python_version(),
-            'numpy': np.__version__, 'platform': platform.platform()}
+            'numpy': np.__version__, 'platform': platform.platform(),
+            'loadavg_1min': os.getloadavg()[0]}
 
 
 def proc_cpu_s(pid: int) -> float:
@@ -649,7 +650,7 @@ def memory_worker(args: argparse.Namespace) -> int:
     wall = time.perf_counter() - t1
     rss_end = proc_rss_mb()
     peak = max(peak, rss_end)
-    if not samples or samples[-1]['data_s'] < (st[-1] - t_first) * 1e-9:
+    if not samples or samples[-1]['data_s'] < (st[-1] - t_first) * 1e-9 - 1.0:
         samples.append({'data_s': (st[-1] - t_first) * 1e-9, 'rss_mb': rss_end, 'wall_s': wall})
     out = {'data_s': drive.duration_s, 'imu_steps': drive.n_imu, 'sim_s': sim_s, 'wall_s': wall,
            'steps_per_s': drive.n_imu / wall, 'realtime_ratio': drive.n_imu / wall / IMU_RATE_HZ,
@@ -687,7 +688,7 @@ def bench_scaling(args: argparse.Namespace) -> dict[str, Any]:
                                                        cfg.total_duration_s)))
         drive = drive_from_sim(simulate(cfg))
         imu, wheels = drive_records(drive)
-        wall, _ = time_core(drive.params, imu, wheels)
+        wall, _ = time_core(drive.params, imu, wheels, args.repeats)
         by_rate.append(_core_row(f'{rate:g} Hz', len(imu), drive.duration_s, wall, float(rate)))
         by_rate[-1]['rate_hz'] = float(rate)
         del imu, wheels, drive
@@ -695,11 +696,11 @@ def bench_scaling(args: argparse.Namespace) -> dict[str, Any]:
     for length in args.scaling_lengths:
         drive = chained_drive(float(length))
         imu, wheels = drive_records(drive)
-        wall, _ = time_core(drive.params, imu, wheels)
+        wall, _ = time_core(drive.params, imu, wheels, args.repeats)
         by_length.append(_core_row(f'{length:g} s', len(imu), drive.duration_s, wall))
         by_length[-1]['length_s'] = float(length)
         del imu, wheels, drive
-    return {'by_rate': by_rate, 'by_length': by_length}
+    return {'by_rate': by_rate, 'by_length': by_length, 'repeats': args.repeats}
 
 
 # --- printing -----------------------------------------------------------------------------------
@@ -730,6 +731,8 @@ def print_machine(info: dict[str, Any]) -> None:
     print('== machine')
     print(f'  CPU {info["cpu_model"]}, {info["cores"]} cores; Python {info["python"]}, '
           f'numpy {info["numpy"]}; {info["platform"]}')
+    print(f'  1-min load average at start: {info["loadavg_1min"]:.2f} (other processes share '
+          'the cores; compare runs at similar load)')
 
 
 def print_core(res: dict[str, Any]) -> None:
@@ -805,7 +808,8 @@ def print_memory(res: dict[str, Any]) -> None:
 
 
 def print_scaling(res: dict[str, Any]) -> None:
-    print('\n== scaling: core cost vs IMU rate (short scenario simulated at each rate)')
+    print('\n== scaling: core cost vs IMU rate (short scenario simulated at each rate, best of '
+          f'{res["repeats"]})')
     print(_table(('IMU rate', 'IMU steps', 'wall s', 'us/step', 'x real time'),
                  [(r['label'], r['imu_steps'], r['wall_s'], r['us_per_step'],
                    r['realtime_ratio']) for r in res['by_rate']]))
@@ -901,6 +905,8 @@ def bench_main(argv: list[str] | None = None) -> int:
         report[name] = res
         show(res)
         sys.stdout.flush()
+    report['machine']['loadavg_1min_end'] = os.getloadavg()[0]
+    print(f'\n1-min load average at the end: {report["machine"]["loadavg_1min_end"]:.2f}')
     if args.json:
         args.json.write_text(json.dumps(report, indent=1, default=float))
         print(f'\nfigures written to {args.json}')

@@ -7,6 +7,7 @@ simulate           write a simulated rover drive (MCAP bag + params file)
 replay             play a bag through the node code, write its outputs to an MCAP bag
 evaluate           compare a replay output with truth (simulator truth or GNSS)
 import-pathfinder  convert a Pathfinder .mat log to an MCAP bag + params file
+bench              measure core, replay, live-node and memory performance on this machine
 default-config     print config/slip_estimator.yaml as generated from the parameter schema
 """
 from __future__ import annotations
@@ -70,6 +71,7 @@ COMMANDS = {
     'replay': _lazy('slip_estimator.replay', 'replay_main'),
     'evaluate': _lazy('slip_estimator.report', 'evaluate_main'),
     'import-pathfinder': _lazy('slip_estimator.report', 'import_main'),
+    'bench': _lazy('slip_estimator.bench', 'bench_main'),
     'default-config': _default_config,
 }
 

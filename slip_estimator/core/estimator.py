@@ -113,6 +113,11 @@ class SlipEstimator:
         self._aid_corrections: deque = deque()
         self._aid_ok_since_ns: int | None = None
         self._aid_paused_ns: int | None = None
+        self._hold_s: float | None = None
+        self._measure_since_ns: int | None = None
+        self._measure_vals: list[float] = []
+        self._change_count = 0
+        self._last_rim: float | None = None
         self.last_records: list[kalman.UpdateRecord] = []
 
     @property
@@ -231,6 +236,7 @@ class SlipEstimator:
         self._history.clear()
         self._aid_corrections.clear()
         self._aid_ok_since_ns = self._aid_paused_ns = None
+        self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
         self._recovering_until_ns = stamp_ns + int(p.recovery_s * _NS)
         self._next_update_ns = stamp_ns
 
@@ -453,6 +459,11 @@ class SlipEstimator:
                 self._wheel_aid(wheel, v_hist, None)
                 out.append(self._unknown(wheel.stamp_ns, wheel.rim_speed_mps))
                 continue
+            if self.params.wheel_aid == 'hold':
+                est = self._slip(wheel, v_hist, yaw_rate_b)
+                out.append(est)
+                self._wheel_aid_hold(wheel, v_hist, est)
+                continue
             est = self._slip(wheel, v_hist - self._recent_aid(wheel.stamp_ns), yaw_rate_b)
             out.append(est)
             self._wheel_aid(wheel, v_hist, est)
@@ -508,6 +519,48 @@ class SlipEstimator:
             return
         self._aid_paused_ns = None
         self._aid_update(wheel.rim_speed_mps, v_hist)
+
+    def _wheel_aid_hold(self, wheel: WheelSample, v_hist: float, est: SlipEstimate) -> None:
+        """Piecewise-constant slip aid: measure, hold, watch for the next change.
+
+        MEASURE: for ``slip_measure_s`` after motion starts or after a detected change the INS
+        alone measures the slip (short unaided INS intervals are accurate). HOLD: the measured
+        slip is held and the rim speed aids the forward velocity as ``r w (1 - s_hold)``, which
+        stops the INS drift without assuming zero slip. A change of the terrain (rim speed moves
+        while the IMU says the body does not, or the reverse) makes the innovation exceed
+        ``slip_change_fraction`` of the rim speed twice in a row: back to MEASURE."""
+        p = self.params
+        w = wheel.rim_speed_mps
+        t = wheel.stamp_ns
+        if est.slip_class <= 0 or abs(w) < p.moving_speed_threshold:
+            self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
+            return
+        steady = self._last_rim is not None and abs(w - self._last_rim) <= 0.05 * abs(w) + 0.01
+        self._last_rim = w
+        if self._hold_s is None:
+            # Measure on steady driving only: while the speed changes, the encoder speed
+            # (a count difference) lags the body and would bias the held slip.
+            if self.is_turning or not steady:
+                self._measure_since_ns = None
+                return
+            if self._measure_since_ns is None:
+                self._measure_since_ns, self._measure_vals = t, []
+            self._measure_vals.append(est.slip_ratio)
+            if t - self._measure_since_ns >= int(p.slip_measure_s * _NS):
+                half = self._measure_vals[len(self._measure_vals) // 2:]
+                self._hold_s = float(np.median(half))
+            return
+        z = w * (1.0 - self._hold_s)
+        if abs(z - v_hist) > max(p.slip_change_fraction * abs(w), 2.0 * p.wheel_aid_std):
+            self._change_count += 1
+            if self._change_count >= 2:
+                self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
+                self._event('slip change detected: measuring')
+            return
+        self._change_count = 0
+        # Turning, the wheels also skid sideways: the held slip is a looser constraint.
+        R = np.array([[p.wheel_aid_std ** 2 * (4.0 if self.is_turning else 1.0)]])
+        self._apply('wheel', np.array([z - v_hist]), self.nhc.jacobian(self.state, (0,)), R)
 
     def _aid_update(self, w: float, v_hist: float) -> None:
         p = self.params
