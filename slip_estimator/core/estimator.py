@@ -9,10 +9,20 @@ Processing steps for each IMU sample (numbered as in the code):
 3. strapdown mechanization at the full IMU rate;
 4. covariance propagation every ``covariance_decimation`` samples over the accumulated
    interval (second-order Phi; ``covariance_decimation = 1`` is the reference path);
-5. at ``update_rate_hz``: detectors decide, then ZUPT + ZARU (stationary) or the
-   non-holonomic constraint (moving; vertical only while turning), chi-square gated;
+5. at ``update_rate_hz`` (at a propagation epoch): detectors decide, then ZUPT + ZARU
+   (stationary) or the non-holonomic constraint (moving; vertical only while turning), with
+   a soft chi-square gate; then the filter-health checks (repair, recover, reset);
 6. slip for every wheel sample the filter has reached, from the body velocity at the wheel
-   sample time. Wheel speeds never enter the filter, so slip is not pulled towards zero.
+   sample time.
+
+Beyond the paper: with the paper's pseudo-measurements alone the forward velocity is
+unobservable while driving, and gyro noise and vibration drift it by several cm/s within
+seconds (0.1 m/s per second on the real Pathfinder logs). ``wheel_aid = 'hold'`` measures the
+slip with the unaided INS for ``slip_measure_s`` after motion starts and after every detected
+slip change (short INS intervals are accurate), then holds it and uses the rim speed as
+``r w (1 - s_hold)``: that stops the drift without assuming zero slip, so the reported slip is
+not pulled towards zero. A terrain change shows as a rim speed the body does not follow
+(or the reverse) and starts a new measurement. ``wheel_aid = 'off'`` is the paper's method.
 """
 from __future__ import annotations
 
@@ -110,9 +120,6 @@ class SlipEstimator:
         self._recovering_until_ns: int | None = None
         self.nis_mean = {'zupt': float('nan'), 'zaru': float('nan'), 'nhc': float('nan'),
                          'wheel': float('nan')}
-        self._aid_corrections: deque = deque()
-        self._aid_ok_since_ns: int | None = None
-        self._aid_paused_ns: int | None = None
         self._hold_s: float | None = None
         self._measure_since_ns: int | None = None
         self._measure_vals: list[float] = []
@@ -234,8 +241,6 @@ class SlipEstimator:
         self.P = np.diag(d)
         self._acc_tau, self._acc_f_n, self._acc_n = 0.0, np.zeros(3), 0
         self._history.clear()
-        self._aid_corrections.clear()
-        self._aid_ok_since_ns = self._aid_paused_ns = None
         self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
         self._recovering_until_ns = stamp_ns + int(p.recovery_s * _NS)
         self._next_update_ns = stamp_ns
@@ -456,17 +461,16 @@ class SlipEstimator:
                 continue
             v_hist, yaw_rate_b = at
             if self._recovering(wheel.stamp_ns):
-                self._wheel_aid(wheel, v_hist, None)
+                # Re-anchor the velocity on the wheels (zero slip assumed, so slip is unknown).
+                if self.params.wheel_aid != 'off' and not self.is_turning:
+                    w = wheel.rim_speed_mps
+                    self._aid_update(w, v_hist, self.params.wheel_aid_std ** 2 + (0.1 * w) ** 2)
                 out.append(self._unknown(wheel.stamp_ns, wheel.rim_speed_mps))
                 continue
-            if self.params.wheel_aid == 'hold':
-                est = self._slip(wheel, v_hist, yaw_rate_b)
-                out.append(est)
-                self._wheel_aid_hold(wheel, v_hist, est)
-                continue
-            est = self._slip(wheel, v_hist - self._recent_aid(wheel.stamp_ns), yaw_rate_b)
+            est = self._slip(wheel, v_hist, yaw_rate_b)
             out.append(est)
-            self._wheel_aid(wheel, v_hist, est)
+            if self.params.wheel_aid == 'hold':
+                self._wheel_aid_hold(wheel, v_hist, est)
         out.extend(self._stale_check())
         return out
 
@@ -477,48 +481,6 @@ class SlipEstimator:
             self._recovering_until_ns = None
             return False
         return True
-
-    def _recent_aid(self, stamp_ns: int) -> float:
-        """Forward-velocity corrections (m/s) the wheel aid made in the ``slip_independence_s``
-        before ``stamp_ns`` or, while the aid is paused by a slip episode, before the pause.
-        They are removed from the slip velocity: the onset of a slip episode is never hidden
-        by the aid that was still running while the slip built up."""
-        T = int(self.params.slip_independence_s * _NS)
-        end = self._aid_paused_ns if self._aid_paused_ns is not None else stamp_ns
-        aid = self._aid_corrections
-        while aid and aid[0][0] < end - T:
-            aid.popleft()
-        return sum(dv for t, dv in aid if end - T < t <= end)
-
-    def _wheel_aid(self, wheel: WheelSample, v_hist: float, est: SlipEstimate | None) -> None:
-        """Gated wheel-speed update of the forward velocity (beyond the paper).
-
-        The paper's pseudo-measurements leave forward velocity unobservable between stops, so
-        pitch errors of a few 0.1 mrad drift it by several cm/s per 10 s. While the slip has
-        stayed low (|s| below ``wheel_aid_max_slip`` for ``wheel_aid_hold_s``) and the rover
-        drives straight, the rim speed is a good measurement of the forward speed; as soon as
-        the slip rises the aid stops and the INS alone carries the velocity through the slip
-        episode. Corrections are recorded so that the reported slip excludes the last
-        ``slip_independence_s`` of aid (see :meth:`_recent_aid`)."""
-        p = self.params
-        if est is None:  # recovering: re-anchor the velocity on the wheels (slip is unknown)
-            if not self.is_turning and p.wheel_aid_max_slip > 0.0:
-                self._aid_update(wheel.rim_speed_mps, v_hist)
-            return
-        if p.wheel_aid_max_slip <= 0.0 or est.slip_class <= 0:
-            self._aid_ok_since_ns = None
-            return
-        if abs(est.slip_ratio) >= p.wheel_aid_max_slip or self.is_turning:
-            if self._aid_ok_since_ns is not None and self._aid_paused_ns is None:
-                self._aid_paused_ns = wheel.stamp_ns
-            self._aid_ok_since_ns = None
-            return
-        if self._aid_ok_since_ns is None:
-            self._aid_ok_since_ns = wheel.stamp_ns
-        if wheel.stamp_ns - self._aid_ok_since_ns < int(p.wheel_aid_hold_s * _NS):
-            return
-        self._aid_paused_ns = None
-        self._aid_update(wheel.rim_speed_mps, v_hist)
 
     def _wheel_aid_hold(self, wheel: WheelSample, v_hist: float, est: SlipEstimate) -> None:
         """Piecewise-constant slip aid: measure, hold, watch for the next change.
@@ -559,16 +521,13 @@ class SlipEstimator:
             return
         self._change_count = 0
         # Turning, the wheels also skid sideways: the held slip is a looser constraint.
-        R = np.array([[p.wheel_aid_std ** 2 * (4.0 if self.is_turning else 1.0)]])
-        self._apply('wheel', np.array([z - v_hist]), self.nhc.jacobian(self.state, (0,)), R)
+        self._aid_update(z, v_hist, p.wheel_aid_std ** 2 * (4.0 if self.is_turning else 1.0))
 
-    def _aid_update(self, w: float, v_hist: float) -> None:
-        p = self.params
-        R = np.array([[p.wheel_aid_std ** 2 + (0.5 * p.wheel_aid_max_slip * w) ** 2]])
-        v_before = self._base_velocity_b(self._omega_ib_b)[0]
-        self._apply('wheel', np.array([w - v_hist]), self.nhc.jacobian(self.state, (0,)), R)
-        dv = float(self._base_velocity_b(self._omega_ib_b)[0] - v_before)
-        self._aid_corrections.append((self.stamp_ns, dv))
+    def _aid_update(self, z_mps: float, v_hist: float, var: float) -> None:
+        """Forward-velocity update of the base point with the aid value ``z_mps`` at the wheel
+        sample time (``v_hist`` is the INS value then)."""
+        self._apply('wheel', np.array([z_mps - v_hist]), self.nhc.jacobian(self.state, (0,)),
+                    np.array([[var]]))
 
     def _slip(self, wheel: WheelSample, v_body: float, yaw_rate_b: float) -> SlipEstimate:
         p = self.params

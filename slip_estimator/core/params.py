@@ -93,21 +93,14 @@ class Params:
                                  'detection (0 = unknown)', 0.0, 10000.0)
     gyro_range_rps: float = _p(0.0, 'rad/s', 'gyro measurement range, for clipping detection '
                                '(0 = unknown)', 0.0, 1000.0)
-    wheel_aid: str = _p('hold', '', 'forward-velocity aid from the rim speed: off (paper), '
-                        'low_slip (only while |s| is small) or hold (measured slip held)',
-                        choices=('off', 'low_slip', 'hold'))
+    wheel_aid: str = _p('hold', '', 'forward-velocity aid from the rim speed: off (the paper) '
+                        'or hold (slip measured by the INS after each change, then held)',
+                        choices=('off', 'hold'))
     slip_measure_s: float = _p(1.0, 's', 'hold mode: unaided INS time to measure a new slip',
                                0.1, 30.0)
     slip_change_fraction: float = _p(0.1, '', 'hold mode: an aid innovation beyond this '
                                      'fraction of the rim speed signals a slip change', 0.01, 1.0)
-    wheel_aid_max_slip: float = _p(0.1, '', 'wheel speed aids the forward velocity only while '
-                                   '|slip| stayed below this (0 = paper method, no aid)', 0.0, 0.2)
-    wheel_aid_hold_s: float = _p(1.0, 's', 'how long |slip| must stay low before the wheel aid '
-                                 'resumes', 0.0, 60.0)
-    wheel_aid_std: float = _p(0.02, 'm/s', 'wheel-aid measurement 1-sigma (plus half the '
-                              'allowed slip times the rim speed)', 1e-3, 1.0)
-    slip_independence_s: float = _p(2.0, 's', 'slip excludes the wheel-aid corrections of this '
-                                    'last period', 0.0, 60.0)
+    wheel_aid_std: float = _p(0.02, 'm/s', 'wheel-aid measurement 1-sigma', 1e-3, 1.0)
     innovation_gate_probability: float = _p(0.9999, '', 'chi-square gate probability for '
                                             'pseudo-measurements (1 disables the gate)', 0.9, 1.0)
     # --- detectors --------------------------------------------------------------------------------
