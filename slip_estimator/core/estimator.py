@@ -75,6 +75,7 @@ class SlipEstimator:
         r_imu_b = frames.C_FLU_FRD @ np.asarray(p.imu_to_base_xyz, dtype=float)
         self.l_bw_b = -r_imu_b
         self._l_bw_b = tuple(self.l_bw_b.tolist())
+        self._wheel_latency_ns = int(p.wheel_latency_s * _NS)
         self.zupt = ZeroVelocity()
         self.zaru = ZeroAngularRate(self.planet)
         self.nhc = NonHolonomic(self.planet, self.l_bw_b)
@@ -455,7 +456,8 @@ class SlipEstimator:
         out: list[SlipEstimate] = []
         while self._pending and self._pending[0].stamp_ns <= self.stamp_ns:
             wheel = self._pending.popleft()
-            at = self._history_at(wheel.stamp_ns)
+            # The body velocity the wheel speed belongs to: ``wheel_latency_s`` before its stamp.
+            at = self._history_at(wheel.stamp_ns - self._wheel_latency_ns)
             if at is None:
                 self.counters['wheel_late'] += 1
                 continue

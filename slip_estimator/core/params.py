@@ -41,6 +41,9 @@ class Params:
         ['front_left_wheel_joint', 'front_right_wheel_joint',
          'rear_left_wheel_joint', 'rear_right_wheel_joint'], '',
         'JointState names of the driven wheels; the side is taken from "left"/"right" in the name')
+    wheel_latency_s: float = _p(0.0, 's', 'age of the wheel speed at its stamp (encoder count '
+                                'differences, driver delays); slip compares it with the body '
+                                'speed that long before the stamp', 0.0, 1.0)
     max_wheel_speed_mps: float = _p(5.0, 'm/s', 'rim speeds above this are rejected as absurd',
                                     0.1, 100.0)
     # --- IMU mounting: pose of imu_link in base_link (as a static transform base_link->imu) -----

@@ -71,7 +71,9 @@ def sim_params(result: SimResult) -> object:
         gyro_noise_density=max(imu.gyro_noise_density_rps_rthz, 1e-7),
         accel_bias_psd=imu.accel_bias_psd_m2ps5, gyro_bias_psd=imu.gyro_bias_psd_rad2ps3,
         initial_accel_bias_std=max(imu.accel_bias_sigma_mps2, 1e-6),
-        initial_gyro_bias_std=max(imu.gyro_bias_sigma_rps, 1e-7))
+        initial_gyro_bias_std=max(imu.gyro_bias_sigma_rps, 1e-7),
+        # The encoder speed is a count difference over the last wheel period: its mean age.
+        wheel_latency_s=0.5 / cfg.rate_wheel_hz)
 
 
 def write_sim_bag(result: SimResult, bag_path: str | Path,
