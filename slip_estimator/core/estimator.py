@@ -33,6 +33,7 @@ import numpy as np
 
 from slip_estimator.core import frames, kalman
 from slip_estimator.core.detectors import StationaryDetector, TurnDetector
+from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.error_model import (
     curvilinear_to_ned,
     process_noise,
@@ -55,6 +56,7 @@ from slip_estimator.core.types import (
 _NS = 1_000_000_000
 _HISTORY_S = 2.0
 _MAX_PENDING_WHEEL = 50
+_CHANGE_SAMPLES = 3  # consecutive wheel samples beyond the change threshold
 _POSE_IDX = np.r_[POS, ATT]
 _TWIST_IDX = np.r_[VEL, BG]
 
@@ -89,6 +91,7 @@ class SlipEstimator:
             'gated', 'resets', 'recoveries', 'divergence_resets', 'covariance_repairs',
             'slip_estimates', 'slip_unknown'), 0)
         self._events: deque = deque(maxlen=20)
+        self.monitor = ResidualMonitor()
         self._S = (p.gyro_noise_density ** 2, p.accel_noise_density ** 2, p.accel_bias_psd,
                    p.gyro_bias_psd)
         self._reset_filter()
@@ -125,6 +128,7 @@ class SlipEstimator:
         self._measure_since_ns: int | None = None
         self._measure_vals: list[float] = []
         self._change_count = 0
+        self._previous_hold: float | None = None
         self._last_rim: float | None = None
         self.last_records: list[kalman.UpdateRecord] = []
 
@@ -348,18 +352,22 @@ class SlipEstimator:
         Strapdown integration of it leaves errors (sampling, coning/sculling, g-sensitivity) that
         a fixed white-noise model ignores, and an over-confident filter then turns constraint
         residuals into wild attitude corrections. A fraction of the window spread is therefore
-        added as white noise: ``S = N^2 + (k sigma)^2 dt``.
+        added as white noise: ``S = N^2 + k^2 (sigma^2 - N^2 / dt) dt`` (only the spread beyond
+        the sensor noise, so a rover at rest keeps the plain noise model).
         """
         S_rg, S_ra, S_bad, S_bgd = self._S
         k = self.params.vibration_noise_fraction
         if k <= 0.0 or self.stationary.window.n < 2:
             return self._S
-        std = self.stationary.window.samples().std(axis=0)
+        var = self.stationary.window.samples().var(axis=0)
         dt = self._nominal_dt
-        return (S_rg + (k * float(std[3:].max())) ** 2 * dt,
-                S_ra + (k * float(std[:3].max())) ** 2 * dt, S_bad, S_bgd)
+        # Only the spread beyond the white noise already in S (sigma^2 = S / dt per sample).
+        excess_g = max(0.0, float(var[3:].max()) - S_rg / dt)
+        excess_a = max(0.0, float(var[:3].max()) - S_ra / dt)
+        return S_rg + k * k * excess_g * dt, S_ra + k * k * excess_a * dt, S_bad, S_bgd
 
-    def _apply(self, name: str, innovation: np.ndarray, H: np.ndarray, R: np.ndarray) -> None:
+    def _apply(self, name: str, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
+               channels: tuple[str, ...] | None = None) -> None:
         """One pseudo-measurement update with a soft chi-square gate.
 
         A constraint the rover's physics guarantees is never thrown away; an innovation beyond
@@ -373,6 +381,12 @@ class SlipEstimator:
             self.counters['gated'] += 1
             dx, P, _ = kalman.update(self.P, innovation, H, R * (rec.nis / gate), name=name)
         self.last_records.append(rec)
+        if math.isfinite(rec.nis):
+            if channels is None:
+                self.monitor.add(name, innovation, rec.S)
+            else:
+                for i, channel in enumerate(channels):
+                    self.monitor.add(channel, innovation[i:i + 1], rec.S[i:i + 1, i:i + 1])
         prev = self.nis_mean[name]
         self.nis_mean[name] = rec.nis if math.isnan(prev) else 0.98 * prev + 0.02 * rec.nis
         if math.isfinite(rec.nis):
@@ -402,8 +416,9 @@ class SlipEstimator:
             rows = (2,) if self.is_turning else (1, 2)
             sig = {1: p.nhc_lateral_std, 2: p.nhc_vertical_std}
             R = np.diag([sig[r] ** 2 for r in rows])
+            names = {1: 'nhc_lateral', 2: 'nhc_vertical'}
             self._apply('nhc', self.nhc.innovation(self.state, w_mean, rows),
-                        self.nhc.jacobian(self.state, rows), R)
+                        self.nhc.jacobian(self.state, rows), R, tuple(names[r] for r in rows))
 
     # ------------------------------------------------------------------ slip
     def _base_velocity_b(self, omega_ib_b: np.ndarray) -> np.ndarray:
@@ -498,6 +513,7 @@ class SlipEstimator:
         t = wheel.stamp_ns
         if est.slip_class <= 0 or abs(w) < p.moving_speed_threshold:
             self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
+            self._previous_hold = None
             return
         steady = self._last_rim is not None and abs(w - self._last_rim) <= 0.05 * abs(w) + 0.01
         self._last_rim = w
@@ -512,18 +528,28 @@ class SlipEstimator:
             self._measure_vals.append(est.slip_ratio)
             if t - self._measure_since_ns >= int(p.slip_measure_s * _NS):
                 half = self._measure_vals[len(self._measure_vals) // 2:]
-                self._hold_s = float(np.median(half))
+                measured = float(np.median(half))
+                previous = self._previous_hold
+                if previous is not None and abs(measured - previous) * abs(w) < self._change_mps(w):
+                    measured = previous  # a false alarm: the INS confirms the held slip
+                self._hold_s = measured
+                self.monitor.add_held_slip(self._hold_s)
             return
         z = w * (1.0 - self._hold_s)
-        if abs(z - v_hist) > max(p.slip_change_fraction * abs(w), 2.0 * p.wheel_aid_std):
+        if abs(z - v_hist) > self._change_mps(w):
             self._change_count += 1
-            if self._change_count >= 2:
+            if self._change_count >= _CHANGE_SAMPLES:
+                self._previous_hold = self._hold_s
                 self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
                 self._event('slip change detected: measuring')
             return
         self._change_count = 0
         # Turning, the wheels also skid sideways: the held slip is a looser constraint.
         self._aid_update(z, v_hist, p.wheel_aid_std ** 2 * (4.0 if self.is_turning else 1.0))
+
+    def _change_mps(self, w: float) -> float:
+        """Speed discrepancy that signals a slip change at rim speed ``w``."""
+        return max(self.params.slip_change_fraction * abs(w), 2.0 * self.params.wheel_aid_std)
 
     def _aid_update(self, z_mps: float, v_hist: float, var: float) -> None:
         """Forward-velocity update of the base point with the aid value ``z_mps`` at the wheel
@@ -633,12 +659,9 @@ class SlipEstimator:
         })
         for k, v in self.nis_mean.items():
             values[f'nis_mean_{k}'] = v
-        level, notes = 0, []
-        dof = {'zupt': 3, 'zaru': 3, 'nhc': 2, 'wheel': 1}
-        for k, v in self.nis_mean.items():
-            if not math.isnan(v) and v > 4.0 * dof[k]:
-                level = 1
-                notes.append(f'{k} residuals {v:.1f}x expected: unmodelled effect suspected')
+        values.update(self.monitor.values())
+        notes = [f'suspected: {text}' for text in self.monitor.suspects()]
+        level = 1 if notes else 0
         if np.any(np.abs(st.b_g) > 5.0 * self.params.initial_gyro_bias_std):
             level = 1
             notes.append('gyro bias estimate beyond 5 sigma of its prior')

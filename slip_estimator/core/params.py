@@ -66,7 +66,7 @@ class Params:
     accel_bias_psd: float = _p(1.0e-7, 'm^2/s^5', 'accelerometer bias variation PSD S_bad',
                                0.0, 1.0)
     gyro_bias_psd: float = _p(1.0e-11, 'rad^2/s^3', 'gyro bias variation PSD S_bgd', 0.0, 1.0)
-    vibration_noise_fraction: float = _p(0.1, '', 'fraction of the IMU window spread (vibration) '
+    vibration_noise_fraction: float = _p(0.5, '', 'fraction of the IMU window spread (vibration) '
                                          'added to the white-noise model', 0.0, 10.0)
     initial_accel_bias_std: float = _p(0.05, 'm/s^2', 'initial accelerometer bias 1-sigma',
                                        1e-6, 10.0)

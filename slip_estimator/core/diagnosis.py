@@ -1,0 +1,92 @@
+"""Self-diagnosis: watch the filter's residuals and name the unmodelled effect they point to.
+
+Each pseudo-measurement channel keeps exponentially weighted statistics of its normalised
+innovations ``nu_i / sqrt(S_ii)``: the mean square (1 when the model fits, the per-channel NIS)
+and the mean (0 when the model fits). A large mean square says the channel's noise model is
+wrong; a persistent signed mean says something systematic is missing. The mapping from a
+symptom to a suspect is physics, stated with each rule below; it is a hint for the operator,
+not a proof.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+CHANNELS = ('zupt', 'zaru', 'nhc_lateral', 'nhc_vertical', 'wheel')
+
+
+class ResidualMonitor:
+    """Exponentially weighted residual statistics per channel, and the suspects they imply.
+
+    Parameters
+    ----------
+    weight : EMA weight of a new update (0.02: about the last 50 updates, 5 s at 10 Hz).
+    """
+
+    def __init__(self, weight: float = 0.02) -> None:
+        self.weight = weight
+        self.mean = dict.fromkeys(CHANNELS, 0.0)
+        self.mean_square = dict.fromkeys(CHANNELS, float('nan'))
+        self.count = dict.fromkeys(CHANNELS, 0)
+        self.held_slip_mean = float('nan')
+        self.held_slip_count = 0
+
+    def add(self, channel: str, innovation: np.ndarray, S: np.ndarray) -> None:
+        """Add the normalised innovation of one update (one component per call or a vector
+        whose components are averaged)."""
+        z = np.asarray(innovation, dtype=float) / np.sqrt(np.maximum(np.diag(S), 1e-300))
+        w = self.weight if self.count[channel] else 1.0
+        self.mean[channel] += w * (float(z.mean()) - self.mean[channel])
+        ms = float(np.mean(z * z))
+        prev = self.mean_square[channel]
+        self.mean_square[channel] = ms if math.isnan(prev) else prev + w * (ms - prev)
+        self.count[channel] += 1
+
+    def add_held_slip(self, s_hold: float) -> None:
+        """A slip value the hold-mode aid settled on during ordinary (low-slip) driving."""
+        if abs(s_hold) > 0.2:
+            return
+        w = 0.1 if self.held_slip_count else 1.0
+        prev = 0.0 if math.isnan(self.held_slip_mean) else self.held_slip_mean
+        self.held_slip_mean = prev + w * (s_hold - prev)
+        self.held_slip_count += 1
+
+    def suspects(self, min_updates: int = 30) -> list[str]:
+        """Named likely unmodelled effects, most specific first."""
+        out = []
+        ms, mean, n = self.mean_square, self.mean, self.count
+        if n['nhc_lateral'] >= min_updates and abs(mean['nhc_lateral']) > 1.0:
+            # A heading misalignment of the IMU makes the forward speed leak into the lateral
+            # axis with one sign; skid or side slopes do not keep one sign while driving.
+            out.append('lateral velocity residual biased (%+.1f sigma): IMU yaw mounting off '
+                       'its declared rotation, or a steady side slope/crab' % mean['nhc_lateral'])
+        if n['nhc_vertical'] >= min_updates and abs(mean['nhc_vertical']) > 1.0:
+            out.append('vertical velocity residual biased (%+.1f sigma): IMU pitch mounting off '
+                       'its declared rotation, or a lever arm missing' % mean['nhc_vertical'])
+        if n['zaru'] >= min_updates and ms['zaru'] > 4.0:
+            out.append('zero-rate residuals %.0fx expected at rest: gyro noise/bias model too '
+                       'optimistic or the rover vibrates while stopped' % ms['zaru'])
+        if n['zupt'] >= min_updates and ms['zupt'] > 4.0:
+            out.append('zero-velocity residuals %.0fx expected: accelerometer bias drifting or '
+                       'the stationarity detector fires while moving' % ms['zupt'])
+        if n['wheel'] >= min_updates and ms['wheel'] > 4.0:
+            out.append('wheel-aid residuals %.0fx expected: slip changing faster than the hold '
+                       'model, or wheel timestamps offset from the IMU' % ms['wheel'])
+        if self.held_slip_count >= 5 and abs(self.held_slip_mean) > 0.03:
+            # On ordinary ground a constant slip in every driving segment is what a wrong
+            # wheel radius looks like: s = 1 - r_eff / r.
+            out.append('slip of %+.2f in all ordinary driving: wheel radius may be off by '
+                       'about %.0f %% (or the terrain always slips; radius and slip cannot be '
+                       'told apart without a speed reference)'
+                       % (self.held_slip_mean, 100.0 * self.held_slip_mean))
+        return out
+
+    def values(self) -> dict[str, float]:
+        """Figures for /diagnostics."""
+        out = {}
+        for c in CHANNELS:
+            out[f'nis_per_dof_{c}'] = self.mean_square[c]
+            out[f'residual_mean_sigma_{c}'] = self.mean[c] if self.count[c] else float('nan')
+        out['held_slip_mean'] = self.held_slip_mean
+        return out
