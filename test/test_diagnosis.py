@@ -41,18 +41,21 @@ def test_inflated_zero_rate_residuals_point_to_the_gyro_noise_model():
 def test_constant_held_slip_points_to_the_wheel_radius():
     m = ResidualMonitor()
     for _ in range(10):
-        m.add_held_slip(0.06)
+        m.add_held_slip(0.04)
+    assert m.suspects() == []  # loose soil slips a few per cent everywhere: not reported
+    for _ in range(20):
+        m.add_held_slip(0.15)
     m.add_held_slip(0.5)  # a real slip episode is not ordinary driving: ignored
     (text,) = m.suspects()
-    assert 'wheel radius' in text and '+0.06' in text
+    assert 'wheel radius' in text and '+0.1' in text  # EMA of 0.04s then 0.15s
 
 
 def test_undeclared_wheel_radius_error_is_reported_by_the_estimator():
-    """The wheels report rim speeds 8 % too high (radius declared 8 % too large): every
-    ordinary segment then shows ~0.07 slip and the health message names the radius."""
+    """The radius is declared 10 % too large, so the rim speeds read 10 % high: every ordinary
+    segment then shows about 0.1 more slip and the health message names the radius."""
     r = simulate(short_scenario(0))
     p = sim_params(r)
-    p = p.replace(wheel_radius=p.wheel_radius * 1.08)
+    p = p.replace(wheel_radius=p.wheel_radius * 1.10)
     C = frames.imu_to_body_dcm(p.imu_to_base_rpy)
     imu_ns, wh_ns = r.stamps_ns(r.imu_t_s), r.stamps_ns(r.wheel_t_s)
     rim = r.wheel_rate_rps * p.wheel_radius
@@ -65,5 +68,5 @@ def test_undeclared_wheel_radius_error_is_reported_by_the_estimator():
             j += 1
         est.add_imu(ImuSample(int(imu_ns[i]), C @ r.f_ib_imu[i], C @ r.omega_ib_imu[i]))
     assert est.monitor.held_slip_count >= 3
-    assert est.monitor.held_slip_mean > 0.03
+    assert est.monitor.held_slip_mean > 0.1
     assert 'wheel radius' in est.health().message
