@@ -8,6 +8,7 @@ replay             play a bag through the node code, write its outputs to an MCA
 evaluate           compare a replay output with truth (simulator truth or GNSS)
 import-pathfinder  convert a Pathfinder .mat log to an MCAP bag + params file
 bench              measure core, replay, live-node and memory performance on this machine
+validate           regenerate docs/validation.md: the model study on the real Pathfinder logs
 default-config     print config/slip_estimator.yaml as generated from the parameter schema
 """
 from __future__ import annotations
@@ -72,6 +73,7 @@ COMMANDS = {
     'evaluate': _lazy('slip_estimator.report', 'evaluate_main'),
     'import-pathfinder': _lazy('slip_estimator.report', 'import_main'),
     'bench': _lazy('slip_estimator.bench', 'bench_main'),
+    'validate': _lazy('slip_estimator.validation', 'validate_main'),
     'default-config': _default_config,
 }
 
