@@ -130,6 +130,7 @@ class SlipEstimator:
         self._change_count = 0
         self._previous_hold: float | None = None
         self._last_rim: float | None = None
+        self._recent_rim: deque = deque()
         self.last_records: list[kalman.UpdateRecord] = []
 
     @property
@@ -505,9 +506,12 @@ class SlipEstimator:
         MEASURE: for ``slip_measure_s`` after motion starts or after a detected change the INS
         alone measures the slip (short unaided INS intervals are accurate). HOLD: the measured
         slip is held and the rim speed aids the forward velocity as ``r w (1 - s_hold)``, which
-        stops the INS drift without assuming zero slip. A change of the terrain (rim speed moves
-        while the IMU says the body does not, or the reverse) makes the innovation exceed
-        ``slip_change_fraction`` of the rim speed twice in a row: back to MEASURE."""
+        stops the INS drift without assuming zero slip. A change of the terrain moves the rim
+        speed relative to the body: when the innovation exceeds ``slip_change_fraction`` of the
+        rim speed on three samples in a row and the rim speed itself moved within the last two
+        seconds, the filter goes back to MEASURE (a discrepancy on a steady rim speed is INS
+        drift, which the aid corrects). A re-measured slip within the change threshold of the
+        previous one is a false alarm and keeps the old value."""
         p = self.params
         w = wheel.rim_speed_mps
         t = wheel.stamp_ns
@@ -517,6 +521,10 @@ class SlipEstimator:
             return
         steady = self._last_rim is not None and abs(w - self._last_rim) <= 0.05 * abs(w) + 0.01
         self._last_rim = w
+        recent = self._recent_rim
+        recent.append((t, w))
+        while recent and recent[0][0] < t - 2 * _NS:
+            recent.popleft()
         if self._hold_s is None:
             # Measure on steady driving only: while the speed changes, the encoder speed
             # (a count difference) lags the body and would bias the held slip.
@@ -536,7 +544,11 @@ class SlipEstimator:
                 self.monitor.add_held_slip(self._hold_s)
             return
         z = w * (1.0 - self._hold_s)
-        if abs(z - v_hist) > self._change_mps(w):
+        # A slip change moves the rim speed (the wheels speed up in sand, or the body and the
+        # wheels slow together in an uphill). A discrepancy on a steady rim speed is INS drift,
+        # which the aid itself corrects.
+        rim_moved = max(abs(w - wk) for _, wk in recent) > 0.5 * self._change_mps(w)
+        if abs(z - v_hist) > self._change_mps(w) and rim_moved:
             self._change_count += 1
             if self._change_count >= _CHANGE_SAMPLES:
                 self._previous_hold = self._hold_s
