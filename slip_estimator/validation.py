@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from slip_estimator.core.params import Params
+
 COMMAND = 'slip-estimator validate --out docs/validation.md'
 LOGS = ('test17run', 's5t1')
 RTK_LOG = 'test17run'
@@ -93,11 +95,12 @@ def _a(m: Measured, log: str) -> dict[str, Any]:
 
 
 def _b(m: Measured, log: str) -> dict[str, Any]:
-    return {'wheel_aid': 'off', 'vibration_noise_fraction': 0.1}
+    # The shipped default fraction of the vibration spread.
+    return {'wheel_aid': 'off', 'vibration_noise_fraction': Params().vibration_noise_fraction}
 
 
 def _c(m: Measured, log: str) -> dict[str, Any]:
-    return {'wheel_aid': 'hold', 'vibration_noise_fraction': 0.1}
+    return {**_b(m, log), 'wheel_aid': 'hold'}
 
 
 def _d(m: Measured, log: str) -> dict[str, Any]:
@@ -261,7 +264,6 @@ def read_diagnostics(output_bag: str | Path) -> dict[str, float]:
 
 def run_case(task: CaseTask) -> CaseResult:
     """Replay one bag with one configuration and evaluate it (runs in a worker process)."""
-    from slip_estimator.core.params import Params
     from slip_estimator.evaluation import (
         evaluate_run,
         evaluate_speed,
