@@ -46,6 +46,8 @@ from slip_estimator.core.planet import PLANETS, earth_rate_n, gravity_n, llh_to_
 from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
 from slip_estimator.core.types import (
+    MAX_ANGULAR_RATE_RPS,
+    MAX_SPECIFIC_FORCE_MPS2,
     Health,
     ImuSample,
     OdometryEstimate,
@@ -143,7 +145,13 @@ class SlipEstimator:
         """Process one IMU sample; return slip estimates that became due."""
         # 1. validate
         f_b, w_b = sample.f_ib_b, sample.omega_ib_b
-        if not math.isfinite(sum(f_b.tolist()) + sum(w_b.tolist())):  # NaN/Inf anywhere
+        f_l, w_l = f_b.tolist(), w_b.tolist()
+        if not math.isfinite(sum(f_l) + sum(w_l)):  # NaN/Inf anywhere
+            self.counters['imu_rejected'] += 1
+            return []
+        if (f_l[0] * f_l[0] + f_l[1] * f_l[1] + f_l[2] * f_l[2] > MAX_SPECIFIC_FORCE_MPS2 ** 2
+                or w_l[0] * w_l[0] + w_l[1] * w_l[1] + w_l[2] * w_l[2]
+                > MAX_ANGULAR_RATE_RPS ** 2):  # finite but absurd: one step would wreck the INS
             self.counters['imu_rejected'] += 1
             return []
         if self.stamp_ns is not None and sample.stamp_ns <= self.stamp_ns:

@@ -20,6 +20,11 @@ SLIP_CLASS_NAMES = ('none', 'low', 'medium', 'high', 'extreme')
 3 high <=0.7, 4 extreme <=1.0."""
 
 SLIP_CLASS_UPPER_BOUNDS = (0.2, 0.4, 0.7)
+
+MAX_SPECIFIC_FORCE_MPS2 = 1000.0
+"""IMU samples beyond this specific-force norm (about 100 g) are physically absurd for a rover."""
+MAX_ANGULAR_RATE_RPS = 100.0
+"""IMU samples beyond this angular-rate norm are physically absurd for a rover."""
 """Upper |s| bounds of classes low, medium and high; anything larger is extreme."""
 
 

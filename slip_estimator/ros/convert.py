@@ -28,6 +28,8 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 
 from slip_estimator.core.types import (
+    MAX_ANGULAR_RATE_RPS,
+    MAX_SPECIFIC_FORCE_MPS2,
     Health,
     ImuSample,
     OdometryEstimate,
@@ -36,13 +38,6 @@ from slip_estimator.core.types import (
 )
 
 NS_PER_S = 1_000_000_000
-
-# Plausibility limits of an IMU sample. Far beyond any rover IMU's range (typ. 16 g, 35 rad/s):
-# they only catch corrupted messages that would otherwise wreck the INS in one step.
-MAX_SPECIFIC_FORCE_MPS2 = 1000.0
-"""Larger specific-force norms (about 100 g) are rejected as ``'absurd_imu'``."""
-MAX_ANGULAR_RATE_RPS = 100.0
-"""Larger angular-rate norms are rejected as ``'absurd_imu'``."""
 
 # Rejection reasons (the keys of the node's per-topic rejection counters).
 REASON_ZERO_STAMP = 'zero_stamp'
@@ -89,7 +84,7 @@ def imu_from_msg(msg: Imu, C_imu_b: np.ndarray) -> ImuSample | str:
     small; the mounting offset is the core's business if ever needed).
     """
     stamp_ns = header_stamp_ns(msg)
-    if stamp_ns == 0:
+    if stamp_ns <= 0:  # zero (never set) or before the epoch: not a usable time
         return REASON_ZERO_STAMP
     a, w = msg.linear_acceleration, msg.angular_velocity
     f_ib_imu = (a.x, a.y, a.z)
@@ -123,7 +118,7 @@ def wheel_from_joint_state(msg: JointState, names: Sequence[str], radius: float,
     The per-side means use the joints whose name contains 'left' / 'right'.
     """
     stamp_ns = header_stamp_ns(msg)
-    if stamp_ns == 0:
+    if stamp_ns <= 0:  # zero (never set) or before the epoch: not a usable time
         return REASON_ZERO_STAMP
     index = {n: i for i, n in enumerate(msg.name)}
     present = [n for n in names if n in index]
@@ -154,7 +149,7 @@ def wheel_from_odometry(msg: Odometry, track: float, *,
     ``v_right = v + w*track/2``.
     """
     stamp_ns = header_stamp_ns(msg)
-    if stamp_ns == 0:
+    if stamp_ns <= 0:  # zero (never set) or before the epoch: not a usable time
         return REASON_ZERO_STAMP
     v = float(msg.twist.twist.linear.x)
     w = float(msg.twist.twist.angular.z)
