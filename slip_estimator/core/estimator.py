@@ -626,6 +626,8 @@ class SlipEstimator:
         if last is None or self.stamp_ns - last <= timeout:
             return []
         self._last_stale_ns = self.stamp_ns
+        self._event(f'wheel data missing for {(self.stamp_ns - self._last_wheel_ns) * 1e-9:.1f} s:'
+                    ' slip unknown')
         return [self._unknown(self.stamp_ns)]
 
     # ------------------------------------------------------------------ outputs
