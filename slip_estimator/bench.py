@@ -445,10 +445,10 @@ def live_worker(args: argparse.Namespace) -> int:
     from nav_msgs.msg import Odometry
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu, JointState
 
     from slip_estimator.ros.adapter import TOPIC_DIAGNOSTICS, TOPIC_IMU, TOPIC_ODOMETRY
+    from slip_estimator.ros.node import input_qos, output_qos
     from slip_estimator.sim import default_scenario, simulate
     from slip_estimator.sim.scenario import WHEEL_JOINT_NAMES
 
@@ -464,14 +464,10 @@ def live_worker(args: argparse.Namespace) -> int:
     n_send = round(args.live_duration_s * cfg.rate_imu_hz)
     del result
 
-    best_effort = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
-                             reliability=ReliabilityPolicy.BEST_EFFORT,
-                             durability=DurabilityPolicy.VOLATILE)
-
-    def reliable(depth: int) -> QoSProfile:
-        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
+    # A best-effort sensor publisher (as IMU drivers are) and reliable listeners: the node's
+    # own profiles.
+    best_effort = input_qos(10)
+    reliable = output_qos
 
     context = Context()
     rclpy.init(context=context, domain_id=int(os.environ.get('ROS_DOMAIN_ID', '0')))

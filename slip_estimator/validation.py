@@ -389,44 +389,41 @@ def _num(text: Any) -> float:
         return float('nan')
 
 
-def lag_curve(log: Any, max_lag_s: float = 0.4, step_s: float = 0.005
-              ) -> tuple[np.ndarray, np.ndarray]:
-    """Correlation of the gyro yaw rate (0.1 s means) with the wheel differential rate vs lag:
-    the curve whose peak :func:`pathfinder.wheel_imu_lag` returns (same signal, same sign)."""
+def _correlation_vs_lag(log: Any, imu_signal: np.ndarray, wheel_signal: np.ndarray,
+                        max_lag_s: float, step_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Correlation of an IMU signal (0.1 s means around each wheel time minus the lag) with a
+    wheel signal, for lags in [-max_lag_s, max_lag_s] (wheel stamp t describes IMU time
+    t - lag)."""
     t = log.wheel_t_s
     inside = (t > log.imu_t_s[0] + 1.0) & (t < log.imu_t_s[-1] - 1.0)
-    r = log.wheel_rate_rps
-    diff = (r[:, 1] + r[:, 3] - r[:, 0] - r[:, 2])[inside]
-    c = np.concatenate([[0.0], np.cumsum(log.omega_ib_imu[:, 2])])
+    c = np.concatenate([[0.0], np.cumsum(imu_signal)])
     lags = np.arange(-max_lag_s, max_lag_s + 1e-9, step_s)
     out = np.full(len(lags), np.nan)
     for k, lag in enumerate(lags):
         tq = t[inside] - lag
         i0 = np.searchsorted(log.imu_t_s, tq - 0.05)
         i1 = np.searchsorted(log.imu_t_s, tq + 0.05)
-        gz = (c[i1] - c[i0]) / np.maximum(i1 - i0, 1)
-        out[k] = np.corrcoef(-gz, diff)[0, 1]
+        mean = (c[i1] - c[i0]) / np.maximum(i1 - i0, 1)
+        out[k] = np.corrcoef(mean, wheel_signal[inside])[0, 1]
     return lags, out
+
+
+def lag_curve(log: Any, max_lag_s: float = 0.4, step_s: float = 0.005
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Correlation of the gyro yaw rate with the wheel differential rate vs lag: the curve
+    whose peak :func:`pathfinder.wheel_imu_lag` returns (same signal, same sign)."""
+    r = log.wheel_rate_rps
+    diff = r[:, 1] + r[:, 3] - r[:, 0] - r[:, 2]
+    return _correlation_vs_lag(log, -log.omega_ib_imu[:, 2], diff, max_lag_s, step_s)
 
 
 def accel_lag_curve(log: Any, max_lag_s: float = 0.4, step_s: float = 0.005
                     ) -> tuple[np.ndarray, np.ndarray]:
-    """Second, independent lag measure: forward specific force Ax (0.1 s means) against the
-    derivative of the mean wheel rate, vs lag (wheel stamp t describes IMU time t - lag)."""
-    t = log.wheel_t_s
+    """Second, independent lag measure: forward specific force Ax against the derivative of
+    the mean wheel rate, vs lag."""
     w = log.wheel_rate_rps.mean(axis=1)
-    dw = np.gradient(w, t)
-    inside = (t > log.imu_t_s[0] + 1.0) & (t < log.imu_t_s[-1] - 1.0)
-    c = np.concatenate([[0.0], np.cumsum(log.f_ib_imu[:, 0])])
-    lags = np.arange(-max_lag_s, max_lag_s + 1e-9, step_s)
-    out = np.full(len(lags), np.nan)
-    for k, lag in enumerate(lags):
-        tq = t[inside] - lag
-        i0 = np.searchsorted(log.imu_t_s, tq - 0.05)
-        i1 = np.searchsorted(log.imu_t_s, tq + 0.05)
-        ax = (c[i1] - c[i0]) / np.maximum(i1 - i0, 1)
-        out[k] = np.corrcoef(ax, dw[inside])[0, 1]
-    return lags, out
+    return _correlation_vs_lag(log, log.f_ib_imu[:, 0], np.gradient(w, log.wheel_t_s),
+                               max_lag_s, step_s)
 
 
 def speed_ratio_samples(log: Any, wheel_radius_m: float, window_s: float = 1.0,
