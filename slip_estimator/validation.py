@@ -369,6 +369,10 @@ class Study:
     wall_s: float
     jobs: int
 
+    def present(self, log: str, variant: str = 'plain') -> list[tuple[str, CaseResult]]:
+        """(configuration key, result) of every configuration run on ``log`` / ``variant``."""
+        return [(k, r) for k in self.configs if (r := self.get(k, log, variant)) is not None]
+
     def get(self, config: str, log: str, variant: str = 'plain') -> CaseResult | None:
         """The result of one case, or None."""
         for r in self.results:
@@ -743,10 +747,7 @@ def slip_table(study: Study, log: str, variant: str) -> list[str]:
     head = ['config', 'bal. acc.', 'recall low', 'med', 'high', 'extr', 'coverage',
             'sig. P', 'sig. R', 'sig. F1', 'slip MAE', 'low: est / truth (bias)']
     rows = []
-    for k in study.configs:
-        r = study.get(k, log, variant)
-        if r is None:
-            continue
+    for k, r in study.present(log, variant):
         m = r.metrics
         rows.append([_label(k), _f(m.get('balanced_accuracy')),
                      *[_f(x, 2) for x in r.recall[1:5]], _f(m.get('coverage'), 2),
@@ -769,10 +770,7 @@ def nav_table(study: Study, log: str, variant: str, coarse: bool = False) -> lis
                 'heading RMS [deg]', 'NIS zupt', 'NIS zaru', 'NIS nhc', 'NIS wheel',
                 'div. resets', 'recoveries']
     rows = []
-    for k in study.configs:
-        r = study.get(k, log, variant)
-        if r is None:
-            continue
+    for k, r in study.present(log, variant):
         m = r.metrics
         resid = [_f(m.get('nis_zupt'), 2), _f(m.get('nis_zaru'), 2), _f(m.get('nis_nhc'), 2),
                  _f(m.get('nis_wheel'), 2), _f(m.get('n_divergence_resets'), 0),
@@ -794,9 +792,8 @@ def _window_table(study: Study) -> list[str]:
     head = ['config'] + [f'x{f} ({a:.0f}-{b:.0f} s): est / truth' for a, b, f in
                          INJECTION_WINDOWS] + ['outside windows, driving: est / truth']
     rows = []
-    for k in study.configs:
-        r = study.get(k, RTK_LOG, 'injected')
-        if r is None or 'slip_t' not in r.series:
+    for k, r in study.present(RTK_LOG, 'injected'):
+        if 'slip_t' not in r.series:
             continue
         t, e, tr = r.series['slip_t'], r.series['slip_est'], r.series['slip_truth']
         cells = [_label(k)]
