@@ -131,6 +131,8 @@ class SlipEstimator:
         self._measure_vals: list[float] = []
         self._change_count = 0
         self._previous_hold: float | None = None
+        self._baseline_s: float | None = None
+        self._from_rest = False
         self._last_rim: float | None = None
         self._recent_rim: deque = deque()
         self.last_records: list[kalman.UpdateRecord] = []
@@ -256,6 +258,7 @@ class SlipEstimator:
         self._acc_tau, self._acc_f_n, self._acc_n = 0.0, np.zeros(3), 0
         self._history.clear()
         self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
+        self._from_rest = False  # the velocity now comes from the rim: not an anchor
         self._recovering_until_ns = stamp_ns + int(p.recovery_s * _NS)
         self._next_update_ns = stamp_ns
 
@@ -519,13 +522,21 @@ class SlipEstimator:
         rim speed on three samples in a row and the rim speed itself moved within the last two
         seconds, the filter goes back to MEASURE (a discrepancy on a steady rim speed is INS
         drift, which the aid corrects). A re-measured slip within the change threshold of the
-        previous one is a false alarm and keeps the old value."""
+        previous one is a false alarm and keeps the old value.
+
+        Each measurement starts from the velocity the previous hold anchored, so INS errors
+        (0.05-0.1 m/s per second unaided on the real Pathfinder logs) would chain from one
+        slip episode to the next. The first slip measured after a start from rest is anchored
+        on the zero velocity of the stop instead: with ``slip_baseline = 'snap'`` it is the
+        baseline of the ground the rover drives on, and a later measurement within the change
+        threshold of it is taken to be that ground again, which ends the chain."""
         p = self.params
         w = wheel.rim_speed_mps
         t = wheel.stamp_ns
         if est.slip_class <= 0 or abs(w) < p.moving_speed_threshold:
             self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
             self._previous_hold = None
+            self._from_rest = True
             return
         steady = self._last_rim is not None and abs(w - self._last_rim) <= 0.05 * abs(w) + 0.01
         self._last_rim = w
@@ -546,8 +557,16 @@ class SlipEstimator:
                 half = self._measure_vals[len(self._measure_vals) // 2:]
                 measured = float(np.median(half))
                 previous = self._previous_hold
-                if previous is not None and abs(measured - previous) * abs(w) < self._change_mps(w):
+                baseline = self._baseline_s
+                if self._from_rest:
+                    self._baseline_s, self._from_rest = measured, False
+                elif previous is not None and abs(measured - previous) * abs(w) < self._change_mps(w):
                     measured = previous  # a false alarm: the INS confirms the held slip
+                elif (baseline is not None and p.slip_baseline == 'snap'
+                      and abs(measured - baseline) * abs(w) < self._change_mps(w)):
+                    # Back on ordinary ground: the slip measured after the last start, anchored
+                    # on the zero velocity at rest, is more accurate than a chained INS interval
+                    measured = baseline
                 self._hold_s = measured
                 self.monitor.add_held_slip(self._hold_s)
             return

@@ -99,8 +99,11 @@ class Params:
     wheel_aid: str = _p('hold', '', 'forward-velocity aid from the rim speed: off (the paper) '
                         'or hold (slip measured by the INS after each change, then held)',
                         choices=('off', 'hold'))
-    slip_measure_s: float = _p(1.0, 's', 'hold mode: unaided INS time to measure a new slip',
+    slip_measure_s: float = _p(0.5, 's', 'hold mode: unaided INS time to measure a new slip',
                                0.1, 30.0)
+    slip_baseline: str = _p('snap', '', 'hold mode: snap (a re-measured slip within the change '
+                            'threshold of the slip measured after the last start from rest '
+                            'is that baseline) or off', choices=('snap', 'off'))
     slip_change_fraction: float = _p(0.1, '', 'hold mode: an aid innovation beyond this '
                                      'fraction of the rim speed signals a slip change', 0.01, 1.0)
     wheel_aid_std: float = _p(0.02, 'm/s', 'wheel-aid measurement 1-sigma', 1e-3, 1.0)
