@@ -8,37 +8,24 @@ miss them, so the test can fail.
 import numpy as np
 import pytest
 
-from slip_estimator.core import frames
-from slip_estimator.core.estimator import SlipEstimator
-from slip_estimator.core.types import ImuSample, WheelSample
+from slip_estimator.effects import Effects, run_core as run_core_data, simulation_data
 from slip_estimator.evaluation import evaluate_slip
 from slip_estimator.sim import short_scenario, simulate
 from slip_estimator.sim.bag import sim_params
 
 
-def run_core(seed: int, **overrides):
-    """Feed a simulated short drive through the core in stamp order; return the slip result
-    and the forward-speed RMSE while moving."""
+def run_core(seed: int, effects: Effects = Effects(), **overrides):
+    """Feed a simulated short drive (with optional undeclared effects) through the core in
+    stamp order; return the slip result and the forward-speed RMSE while moving."""
     r = simulate(short_scenario(seed))
     p = sim_params(r).replace(**overrides)
-    C = frames.imu_to_body_dcm(p.imu_to_base_rpy)
-    imu_ns = r.stamps_ns(r.imu_t_s)
-    wh_ns = r.stamps_ns(r.wheel_t_s)
-    rim = r.wheel_rate_rps * p.wheel_radius
-    est = SlipEstimator(p)
-    out, speed_err, j = [], [], 0
-    for i in range(len(imu_ns)):
-        while j < len(wh_ns) and wh_ns[j] < imu_ns[i]:
-            x = rim[j]
-            out += est.add_wheel(WheelSample(int(wh_ns[j]), float(x.mean()),
-                                             float(x[[0, 2]].mean()), float(x[[1, 3]].mean())))
-            j += 1
-        out += est.add_imu(ImuSample(int(imu_ns[i]), C @ r.f_ib_imu[i], C @ r.omega_ib_imu[i]))
-        if i % 25 == 0 and est.aligned and r.speed_mps[i] > 0.05:
-            speed_err.append(est.odometry().v_ob_b[0] - r.v_ob_b[i, 0])
+    est, out, odo = run_core_data(p, simulation_data(r, p).with_effects(effects))
+    v_true = np.interp(odo[:, 0], r.stamps_ns(r.imu_t_s), r.v_ob_b[:, 0])
+    moving = np.interp(odo[:, 0], r.stamps_ns(r.imu_t_s), r.speed_mps) > 0.05
     res = evaluate_slip([o.stamp_ns for o in out], [o.slip_ratio for o in out],
-                        [o.slip_class for o in out], wh_ns, r.slip_true, r.slip_class)
-    return res, float(np.sqrt(np.mean(np.square(speed_err))))
+                        [o.slip_class for o in out], r.stamps_ns(r.wheel_t_s), r.slip_true,
+                        r.slip_class)
+    return res, float(np.sqrt(np.mean(np.square(odo[moving, 1] - v_true[moving]))))
 
 
 @pytest.mark.parametrize('seed', [0, 2])

@@ -37,6 +37,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 import faults as F  # noqa: E402
+from realdata import mat_or_skip  # noqa: E402
 
 from slip_estimator.bagio import read_messages  # noqa: E402
 from slip_estimator.ros.adapter import (  # noqa: E402
@@ -53,8 +54,6 @@ WINDOW_S = 10.0
 MARGIN = 0.1
 """Allowed drop of the class agreement against the clean run over the recovery window."""
 T_FAULT_S = 22.0
-PATHFINDER = Path(__file__).resolve().parents[1] / '..' / 'shared' / 'data' / 'pathfinder' \
-    / 'test17run.mat'
 
 
 # --- fixtures ----------------------------------------------------------------------------------
@@ -361,14 +360,12 @@ class RealLog:
 
 @pytest.fixture(scope='module')
 def pathfinder(tmp_path_factory) -> RealLog:
-    if not PATHFINDER.exists():
-        pytest.skip(f'real Pathfinder log not found at {PATHFINDER.resolve()} '
-                    '(../shared/data/pathfinder next to the repository)')
+    mat = mat_or_skip('test17run')
     from slip_estimator.evaluation import gnss_slip_truth
     from slip_estimator.pathfinder import gnss_enu, import_pathfinder, rim_speed_mps
 
     work = tmp_path_factory.mktemp('pathfinder')
-    log, _, params = import_pathfinder(PATHFINDER, work / 't17')
+    log, _, params = import_pathfinder(mat, work / 't17')
     stream = [(m.topic, m.msg, m.log_time_ns)
               for m in read_messages(work / 't17', {TOPIC_IMU, TOPIC_JOINT_STATES})]
     wheel_ns = np.array([F.stamp_ns(m) for t, m, _ in stream if t == TOPIC_JOINT_STATES])

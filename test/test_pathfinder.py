@@ -7,21 +7,13 @@ GNSS shows forward motion, and the params file.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-DATA_DIR = Path(__file__).resolve().parents[1].parent / 'shared' / 'data' / 'pathfinder'
+from realdata import mat_or_skip as _mat
+
 LOGS = ('test17run', 's5t1')
-
-
-def _mat(name: str) -> Path:
-    path = DATA_DIR / f'{name}.mat'
-    if not path.exists():
-        pytest.skip(f'Pathfinder log {path} not found (real data lives in '
-                    '<repo>/../shared/data/pathfinder; not part of the repo)')
-    return path
 
 
 @pytest.fixture(scope='module', params=LOGS)

@@ -8,21 +8,18 @@ regenerated into ``docs/validation.md`` by the full command.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import DATA_DIR, mat_or_skip
 
-DATA_DIR = Path(__file__).resolve().parents[1].parent / 'shared' / 'data' / 'pathfinder'
 CONFIGS = ('A', 'D')
 
 
 @pytest.fixture(scope='module')
 def study(tmp_path_factory):
     """The reduced study, run once for the module."""
-    if not (DATA_DIR / 'test17run.mat').exists():
-        pytest.skip(f'Pathfinder log {DATA_DIR / "test17run.mat"} not found (real data lives '
-                    'in <repo>/../shared/data/pathfinder; not part of the repo)')
+    mat_or_skip('test17run')
     pytest.importorskip('h5py')
     from slip_estimator.validation import run_study
 

@@ -1,0 +1,173 @@
+"""Undeclared effects and injected slip, applied to recorded or simulated sensor data.
+
+The estimator must behave sensibly when its data contain an effect its parameters do not
+declare. These helpers put such an effect into data whose truth is known, feed the result
+through the core in stamp order, and score it, so that the tests (simulated and real logs)
+and the validation study measure the same thing:
+
+* ``Effects.imu_rotation_deg``: the IMU is mounted rotated by (roll, pitch, yaw) from its
+  declared ``imu_to_base_rpy`` (both specific force and rate are rotated);
+* ``Effects.gyro_scale_error``: every gyro axis reads ``(1 + k)`` times the true rate;
+* ``Effects.wheel_time_offset_s``: wheel stamps are shifted against the IMU clock (> 0: late);
+* ``Effects.wheel_radius_error``: the declared radius is ``(1 + k)`` times the effective one,
+  so every rim speed the estimator sees is ``(1 + k)`` too high;
+* injected slip: wheel speeds multiplied by a factor inside time windows, the body motion (and
+  so the IMU) left real. The wheels then turn faster than the body moves and the truth slip
+  follows from eq. 1 between the scaled rim speed and the truth forward speed.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+import numpy as np
+
+from slip_estimator.core import frames
+from slip_estimator.core.estimator import SlipEstimator
+from slip_estimator.core.params import Params
+from slip_estimator.core.types import ImuSample, SlipEstimate, WheelSample
+
+Window = tuple[float, float, float]
+"""(start s, end s) relative to a reference time, and the wheel-speed factor inside."""
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Effects the estimator's parameters do not declare (all zero: none)."""
+
+    imu_rotation_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_scale_error: float = 0.0
+    wheel_time_offset_s: float = 0.0
+    wheel_radius_error: float = 0.0
+
+    def label(self) -> str:
+        parts = []
+        if any(self.imu_rotation_deg):
+            parts.append('IMU mounted %+.0f/%+.0f/%+.0f deg (roll/pitch/yaw) off'
+                         % self.imu_rotation_deg)
+        if self.gyro_scale_error:
+            parts.append(f'gyro scale factor {self.gyro_scale_error:+.0%}')
+        if self.wheel_time_offset_s:
+            parts.append(f'wheel stamps {self.wheel_time_offset_s * 1e3:+.0f} ms vs IMU')
+        if self.wheel_radius_error:
+            parts.append(f'declared wheel radius {self.wheel_radius_error:+.0%}')
+        return ', '.join(parts) or 'none'
+
+
+def window_factor(t_rel_s: np.ndarray, windows: Sequence[Window]) -> np.ndarray:
+    """Wheel-speed factor at each time (1 outside the windows; the first window wins)."""
+    t = np.asarray(t_rel_s, dtype=float)
+    factor = np.ones(t.shape)
+    for start, end, f in reversed(windows):
+        factor[(t >= start) & (t < end)] = f
+    return factor
+
+
+@dataclass(frozen=True)
+class SensorData:
+    """Sensor streams in the estimator's body frame.
+
+    imu_ns : IMU stamps, ns (N,); f_ib_b, omega_ib_b : (N, 3) in FRD body axes, SI.
+    wheel_ns : wheel stamps, ns (M,); rim_mps : (M, 4) rim speeds, order FL, FR, RL, RR.
+    """
+
+    imu_ns: np.ndarray
+    f_ib_b: np.ndarray
+    omega_ib_b: np.ndarray
+    wheel_ns: np.ndarray
+    rim_mps: np.ndarray
+
+    def with_effects(self, effects: Effects, windows: Sequence[Window] = (),
+                     t0_ns: int = 0) -> SensorData:
+        """The same drive with injected slip (windows relative to ``t0_ns``) and effects."""
+        R = frames.rpy_to_dcm(*np.radians(effects.imu_rotation_deg))
+        t_rel = (self.wheel_ns - t0_ns) * 1e-9
+        scale = window_factor(t_rel, windows) * (1.0 + effects.wheel_radius_error)
+        return SensorData(
+            self.imu_ns, self.f_ib_b @ R.T,
+            (1.0 + effects.gyro_scale_error) * self.omega_ib_b @ R.T,
+            self.wheel_ns + round(effects.wheel_time_offset_s * 1e9),
+            self.rim_mps * scale[:, None])
+
+
+def run_core(params: Params, data: SensorData, odometry_every: int = 10
+             ) -> tuple[SlipEstimator, list[SlipEstimate], np.ndarray]:
+    """Feed the data through :class:`SlipEstimator` in stamp order.
+
+    Returns the estimator, every slip estimate, and (K, 2) rows of (stamp ns, odometry body-x
+    speed m/s) every ``odometry_every`` IMU samples after alignment.
+    """
+    est = SlipEstimator(params)
+    out: list[SlipEstimate] = []
+    odo = []
+    rim, wns = data.rim_mps, data.wheel_ns
+    j, m = 0, len(wns)
+    for i, stamp in enumerate(data.imu_ns.tolist()):
+        while j < m and wns[j] < stamp:
+            x = rim[j]
+            out += est.add_wheel(WheelSample(int(wns[j]), float(x.mean()),
+                                             float(x[[0, 2]].mean()), float(x[[1, 3]].mean())))
+            j += 1
+        out += est.add_imu(ImuSample(stamp, data.f_ib_b[i], data.omega_ib_b[i]))
+        if i % odometry_every == 0 and est.aligned:
+            odo.append((stamp, float(est.odometry().v_ob_b[0])))
+    return est, out, np.array(odo, dtype=float).reshape(-1, 2)
+
+
+# --------------------------------------------------------------------------------------------
+# Real logs
+# --------------------------------------------------------------------------------------------
+def pathfinder_data(log: Any, params: Params) -> SensorData:
+    """A Pathfinder log's streams as the node would see them with ``params``."""
+    C = frames.imu_to_body_dcm(params.imu_to_base_rpy)
+    return SensorData(np.round(log.imu_t_s * 1e9).astype(np.int64), log.f_ib_imu @ C.T,
+                      log.omega_ib_imu @ C.T, np.round(log.wheel_t_s * 1e9).astype(np.int64),
+                      log.wheel_rate_rps * params.wheel_radius)
+
+
+@dataclass(frozen=True)
+class LogScore:
+    """Slip and speed figures of one core run on a real log against RTK truth."""
+
+    slip: Any  # evaluation.SlipResult
+    speed_rmse_mps: float
+    estimator: SlipEstimator
+
+
+def score_on_log(log: Any, params: Params, windows: Sequence[Window] = (),
+                 effects: Effects = Effects(), truth_lag_s: float = 0.0) -> LogScore:
+    """Run a real log (injected slip, undeclared effects) through the core; score it on RTK.
+
+    Truth slip is eq. 1 between the scaled rim speed with the declared radius and the GNSS
+    forward speed at the wheel time minus ``truth_lag_s``; a declared-radius error is thus
+    part of the truth (it is indistinguishable from slip). The speed RMSE compares the
+    odometry body-x speed with the GNSS speed at the same instants while driving (> 0.1 m/s).
+    """
+    from slip_estimator.evaluation import evaluate_slip, gnss_slip_truth, gnss_velocity_enu
+    from slip_estimator.pathfinder import gnss_enu
+
+    t0_ns = round(float(log.imu_t_s[0]) * 1e9)
+    clean = pathfinder_data(log, params)
+    data = clean.with_effects(effects, windows, t0_ns)
+    est, out, odo = run_core(params, data)
+    p_enu = gnss_enu(log)
+    truth = gnss_slip_truth(clean.wheel_ns, data.rim_mps.mean(axis=1), log.gnss_t_s, p_enu,
+                            wheel_time_offset_s=-truth_lag_s)
+    shift = data.wheel_ns[0] - clean.wheel_ns[0]
+    slip = evaluate_slip([o.stamp_ns - shift for o in out], [o.slip_ratio for o in out],
+                         [o.slip_class for o in out], truth.stamp_ns, truth.s,
+                         truth.slip_class)
+    v_true = np.linalg.norm(gnss_velocity_enu(log.gnss_t_s, p_enu, odo[:, 0] * 1e-9), axis=1)
+    driving = np.isfinite(v_true) & (v_true > 0.1)
+    rmse = float(np.sqrt(np.mean((odo[driving, 1] - v_true[driving]) ** 2))) \
+        if driving.any() else math.nan
+    return LogScore(slip, rmse, est)
+
+
+def simulation_data(result: Any, params: Params) -> SensorData:
+    """A simulated drive's streams (``sim.simulate`` result) as the node would see them."""
+    C = frames.imu_to_body_dcm(params.imu_to_base_rpy)
+    return SensorData(result.stamps_ns(result.imu_t_s), result.f_ib_imu @ C.T,
+                      result.omega_ib_imu @ C.T, result.stamps_ns(result.wheel_t_s),
+                      result.wheel_rate_rps * params.wheel_radius)

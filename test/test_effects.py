@@ -1,0 +1,102 @@
+"""Undeclared effects and injected slip, in simulation and on the real test17run log.
+
+The estimator is run with the declared parameters only, on data that contains an effect the
+parameters do not declare (IMU mounted a few degrees off, gyro scale factor, wheel/IMU
+timestamp offset, wrong wheel radius). Real data with every slip class comes from the real
+test17run log (RTK truth) with its wheel speeds scaled inside windows: the body motion and
+the IMU stay real, the wheels turn faster than the body moves, and the truth slip is eq. 1
+between the scaled rim speed and the RTK forward speed. The thresholds are the issue's
+acceptance levels; the paper's method is shown to miss them on the same data, so the tests
+can fail.
+"""
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+from realdata import mat_or_skip
+from test_accuracy import run_core
+
+from slip_estimator.effects import Effects, score_on_log
+
+WINDOWS = ((10.0, 16.0, 1.8), (20.0, 26.0, 1.4), (30.0, 36.0, 5.0), (42.0, 50.0, 2.5))
+"""test17run (motion 5.4-54.6 s): truth slip ~0.46 (high), 0.31 (medium), 0.81 (extreme),
+0.61 (high); every factor keeps the truth away from a class bound."""
+TRUTH_LAG_S = 0.165  # wheel stamps behind the IMU on test17run (pathfinder.wheel_imu_lag)
+
+UNDECLARED = [
+    Effects(imu_rotation_deg=(0.0, 3.0, 0.0)),
+    Effects(imu_rotation_deg=(0.0, 0.0, 3.0)),
+    Effects(gyro_scale_error=0.02),
+    Effects(wheel_time_offset_s=0.1),
+    Effects(wheel_time_offset_s=-0.1),
+]
+
+
+@functools.lru_cache(maxsize=1)
+def _test17run():
+    from slip_estimator import pathfinder as pf
+
+    log = pf.read_pathfinder_mat(mat_or_skip('test17run'))
+    return log, pf.pathfinder_params(log)
+
+
+def score(effects: Effects = Effects(), windows=WINDOWS, **overrides):
+    pytest.importorskip('h5py')
+    log, params = _test17run()
+    return score_on_log(log, params.replace(**overrides), windows, effects, TRUTH_LAG_S)
+
+
+def assert_meets_the_acceptance_levels(res):
+    assert res.coverage >= 0.95
+    assert res.balanced_accuracy >= 0.80, res.recall
+    assert res.recall[2] >= 0.70 and res.recall[3] >= 0.70, res.recall
+    assert res.significant_f1 >= 0.85
+
+
+def test_real_log_with_injected_slip_meets_the_acceptance_levels():
+    assert_meets_the_acceptance_levels(score().slip)
+
+
+def test_real_log_forward_speed_error_against_rtk():
+    assert score(windows=()).speed_rmse_mps <= 0.05
+
+
+def test_the_papers_method_misses_the_injected_slip():
+    r = score(wheel_aid='off')
+    assert r.slip.balanced_accuracy < 0.8 and r.speed_rmse_mps > 0.05
+
+
+@pytest.mark.parametrize('effects', UNDECLARED, ids=Effects.label)
+def test_real_log_slip_accuracy_holds_with_an_undeclared_effect(effects):
+    assert_meets_the_acceptance_levels(score(effects).slip)
+
+
+@pytest.mark.parametrize('effects', UNDECLARED, ids=Effects.label)
+def test_simulated_slip_accuracy_holds_with_an_undeclared_effect(effects):
+    res, speed_rmse = run_core(0, effects)
+    assert res.balanced_accuracy >= 0.85 and res.significant_f1 >= 0.90, res.recall
+    assert speed_rmse < 0.05
+
+
+def test_undeclared_radius_error_on_the_real_log_is_named_in_the_health_message():
+    """A radius declared 15 % too large reads as +0.15 slip on all ordinary ground; radius
+    and slip cannot be told apart without a speed reference, so the node names the radius
+    as the likely cause instead of correcting it."""
+    r = score(Effects(wheel_radius_error=0.15))
+    assert 'wheel radius' in r.estimator.health().message
+    assert 'wheel radius' not in score().estimator.health().message
+
+
+def test_effects_are_applied_as_declared():
+    """The effect helpers themselves: rotation, scale, stamp shift and windows."""
+    from slip_estimator.effects import SensorData, window_factor
+
+    t = np.array([0.0, 1.0, 2.0, 3.0])
+    assert window_factor(t, ((1.0, 3.0, 2.0),)).tolist() == [1.0, 2.0, 2.0, 1.0]
+    d = SensorData(np.array([0]), np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 0.0, 1.0]]),
+                   np.array([10]), np.ones((1, 4)))
+    e = d.with_effects(Effects((0.0, 0.0, 90.0), 0.1, 0.5, 0.2))
+    assert np.allclose(e.f_ib_b, [[0.0, 1.0, 0.0]]) and np.allclose(e.omega_ib_b, [[0, 0, 1.1]])
+    assert e.wheel_ns.tolist() == [10 + 500_000_000] and np.allclose(e.rim_mps, 1.2)
