@@ -2,9 +2,7 @@
 import numpy as np
 
 from slip_estimator.core.diagnosis import ResidualMonitor
-from slip_estimator.core.estimator import SlipEstimator
-from slip_estimator.core import frames
-from slip_estimator.core.types import ImuSample, WheelSample
+from slip_estimator.effects import Effects, run_core, simulation_data
 from slip_estimator.sim import short_scenario, simulate
 from slip_estimator.sim.bag import sim_params
 
@@ -55,18 +53,7 @@ def test_undeclared_wheel_radius_error_is_reported_by_the_estimator():
     segment then shows about 0.1 more slip and the health message names the radius."""
     r = simulate(short_scenario(0))
     p = sim_params(r)
-    p = p.replace(wheel_radius=p.wheel_radius * 1.10)
-    C = frames.imu_to_body_dcm(p.imu_to_base_rpy)
-    imu_ns, wh_ns = r.stamps_ns(r.imu_t_s), r.stamps_ns(r.wheel_t_s)
-    rim = r.wheel_rate_rps * p.wheel_radius
-    est, j = SlipEstimator(p), 0
-    for i in range(len(imu_ns)):
-        while j < len(wh_ns) and wh_ns[j] < imu_ns[i]:
-            x = rim[j]
-            est.add_wheel(WheelSample(int(wh_ns[j]), float(x.mean()), float(x[[0, 2]].mean()),
-                                      float(x[[1, 3]].mean())))
-            j += 1
-        est.add_imu(ImuSample(int(imu_ns[i]), C @ r.f_ib_imu[i], C @ r.omega_ib_imu[i]))
+    est, _, _ = run_core(p, simulation_data(r, p).with_effects(Effects(wheel_radius_error=0.1)))
     assert est.monitor.held_slip_count >= 3
     assert est.monitor.held_slip_mean > 0.1
     assert 'wheel radius' in est.health().message
