@@ -76,7 +76,7 @@ def test_real_log_slip_accuracy_holds_with_an_undeclared_effect(effects):
 @pytest.mark.parametrize('effects', UNDECLARED, ids=Effects.label)
 def test_simulated_slip_accuracy_holds_with_an_undeclared_effect(effects):
     res, speed_rmse = run_core(0, effects)
-    assert res.balanced_accuracy >= 0.85 and res.significant_f1 >= 0.90, res.recall
+    assert_meets_the_acceptance_levels(res)
     assert speed_rmse < 0.05
 
 

@@ -73,7 +73,7 @@ class ResidualMonitor:
         if n['wheel'] >= min_updates and ms['wheel'] > 4.0:
             out.append('wheel-aid residuals %.0fx expected: slip changing faster than the hold '
                        'model, or wheel timestamps offset from the IMU' % ms['wheel'])
-        if self.held_slip_count >= 3 and abs(self.held_slip_mean) > 0.1:
+        if self.held_slip_count >= 2 and abs(self.held_slip_mean) > 0.1:
             # On ordinary ground a constant slip in every driving segment is what a wrong
             # wheel radius looks like: s = 1 - r_eff / r. Loose soil slips a few per cent
             # everywhere too, so only a large constant slip is reported.

@@ -22,7 +22,8 @@ slip with the unaided INS for ``slip_measure_s`` after motion starts and after e
 slip change (short INS intervals are accurate), then holds it and uses the rim speed as
 ``r w (1 - s_hold)``: that stops the drift without assuming zero slip, so the reported slip is
 not pulled towards zero. A terrain change shows as a rim speed the body does not follow
-(or the reverse) and starts a new measurement. ``wheel_aid = 'off'`` is the paper's method.
+(or the reverse) and starts a new measurement, anchored on velocity continuity and on the
+ground's baseline slip (see ``_wheel_aid_hold``). ``wheel_aid = 'off'`` is the paper's method.
 """
 from __future__ import annotations
 
@@ -59,6 +60,7 @@ _NS = 1_000_000_000
 _HISTORY_S = 2.0
 _MAX_PENDING_WHEEL = 50
 _CHANGE_SAMPLES = 3  # consecutive wheel samples beyond the change threshold
+_ANCHOR_NS = 500_000_000  # aided samples before a slip change that anchor its measurement
 _POSE_IDX = np.r_[POS, ATT]
 _TWIST_IDX = np.r_[VEL, BG]
 
@@ -132,6 +134,10 @@ class SlipEstimator:
         self._change_count = 0
         self._previous_hold: float | None = None
         self._baseline_s: float | None = None
+        self._hold_since_ns = 0
+        self._aided: deque = deque()
+        self._anchor: tuple[float, float] | None = None
+        self._aid_noise_var = 0.0
         self._from_rest = False
         self._last_rim: float | None = None
         self._recent_rim: deque = deque()
@@ -259,6 +265,8 @@ class SlipEstimator:
         self._history.clear()
         self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
         self._from_rest = False  # the velocity now comes from the rim: not an anchor
+        self._anchor = None
+        self._aided.clear()
         self._recovering_until_ns = stamp_ns + int(p.recovery_s * _NS)
         self._next_update_ns = stamp_ns
 
@@ -514,28 +522,37 @@ class SlipEstimator:
     def _wheel_aid_hold(self, wheel: WheelSample, v_hist: float, est: SlipEstimate) -> None:
         """Piecewise-constant slip aid: measure, hold, watch for the next change.
 
-        MEASURE: for ``slip_measure_s`` after motion starts or after a detected change the INS
-        alone measures the slip (short unaided INS intervals are accurate). HOLD: the measured
-        slip is held and the rim speed aids the forward velocity as ``r w (1 - s_hold)``, which
-        stops the INS drift without assuming zero slip. A change of the terrain moves the rim
-        speed relative to the body: when the innovation exceeds ``slip_change_fraction`` of the
-        rim speed on three samples in a row and the rim speed itself moved within the last two
-        seconds, the filter goes back to MEASURE (a discrepancy on a steady rim speed is INS
-        drift, which the aid corrects). A re-measured slip within the change threshold of the
-        previous one is a false alarm and keeps the old value.
+        MEASURE: for ``slip_measure_s`` of steady rim speed after motion starts or after a
+        detected change, the INS alone measures the slip (longer if the body is still speeding
+        up or slowing down). HOLD: the measured slip is held and the rim speed aids the forward
+        velocity as ``r w (1 - s_hold)``, which stops the INS drift without assuming zero slip.
+        A change of the terrain moves the rim speed relative to the body: when the innovation
+        exceeds ``slip_change_fraction`` of the rim speed on three samples in a row and the rim
+        speed itself moved within the last two seconds, the filter goes back to MEASURE (a
+        discrepancy on a steady rim speed is INS drift, which the aid corrects).
 
-        Each measurement starts from the velocity the previous hold anchored, so INS errors
-        (0.05-0.1 m/s per second unaided on the real Pathfinder logs) would chain from one
-        slip episode to the next. The first slip measured after a start from rest is anchored
-        on the zero velocity of the stop instead: with ``slip_baseline = 'snap'`` it is the
-        baseline of the ground the rover drives on, and a later measurement within the change
-        threshold of it is taken to be that ground again, which ends the chain."""
+        What a measurement settles on (:meth:`_measured_slip`), measured on the real
+        Pathfinder logs, where the unaided INS velocity scatters by ~0.05 m/s (1 sigma) within
+        half a second of release against 0.02 m/s aided:
+
+        * from rest, the median INS slip: the velocity is anchored on the stop's ZUPT;
+        * after a change, velocity continuity: the held model's velocity before the change
+          plus the INS velocity change across it, where a change below
+          ``slip_continuity_sigma`` times the measured aid-innovation spread is taken as none
+          (a wheel-speed step the body does not follow);
+        * a result within the change threshold of the previous hold is a false alarm; with
+          ``slip_baseline = 'snap'`` one within the threshold of the slip measured after the
+          last start (the ground's baseline) is that ground again, which ends the chain of
+          INS errors from one episode to the next.
+
+        The velocity is then re-anchored on the held value at once (the drift is known)."""
         p = self.params
         w = wheel.rim_speed_mps
         t = wheel.stamp_ns
         if est.slip_class <= 0 or abs(w) < p.moving_speed_threshold:
             self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
-            self._previous_hold = None
+            self._previous_hold, self._anchor = None, None
+            self._aided.clear()
             self._from_rest = True
             return
         steady = self._last_rim is not None and abs(w - self._last_rim) <= 0.05 * abs(w) + 0.01
@@ -552,23 +569,26 @@ class SlipEstimator:
                 return
             if self._measure_since_ns is None:
                 self._measure_since_ns, self._measure_vals = t, []
-            self._measure_vals.append(est.slip_ratio)
+            vals = self._measure_vals
+            vals.append((est.slip_ratio, v_hist, w))
             if t - self._measure_since_ns >= int(p.slip_measure_s * _NS):
-                half = self._measure_vals[len(self._measure_vals) // 2:]
-                measured = float(np.median(half))
-                previous = self._previous_hold
-                baseline = self._baseline_s
-                if self._from_rest:
-                    self._baseline_s, self._from_rest = measured, False
-                elif previous is not None and abs(measured - previous) * abs(w) < self._change_mps(w):
-                    measured = previous  # a false alarm: the INS confirms the held slip
-                elif (baseline is not None and p.slip_baseline == 'snap'
-                      and abs(measured - baseline) * abs(w) < self._change_mps(w)):
-                    # Back on ordinary ground: the slip measured after the last start, anchored
-                    # on the zero velocity at rest, is more accurate than a chained INS interval
-                    measured = baseline
-                self._hold_s = measured
+                half = len(vals) // 2
+                dv = (sum(v[1] for v in vals[half:]) / (len(vals) - half)
+                      - sum(v[1] for v in vals[:half]) / max(half, 1))
+                if abs(dv) > max(0.02, 2.0 * math.sqrt(self._aid_noise_var)) and \
+                        t - self._measure_since_ns < int(5 * p.slip_measure_s * _NS):
+                    # The body is still speeding up or slowing down (leaving sand, say): the
+                    # slip is not settled yet, measure on.
+                    del vals[:half]
+                    return
+                self._hold_s, self._hold_since_ns = self._measured_slip(w), t
                 self.monitor.add_held_slip(self._hold_s)
+                # Anchor the velocity on the new hold now (not gated: where the measurement
+                # snapped, the INS is known to have drifted, it is not an outlier).
+                dx, self.P, _ = kalman.update(self.P, np.array([w * (1.0 - self._hold_s) - v_hist]),
+                                              self.nhc.jacobian(self.state, (0,)),
+                                              np.array([[p.wheel_aid_std ** 2]]))
+                correct(self.state, dx)
             return
         z = w * (1.0 - self._hold_s)
         # A slip change moves the rim speed (the wheels speed up in sand, or the body and the
@@ -579,12 +599,54 @@ class SlipEstimator:
             self._change_count += 1
             if self._change_count >= _CHANGE_SAMPLES:
                 self._previous_hold = self._hold_s
+                aided = self._aided
+                self._anchor = (sum(a[1] for a in aided) / len(aided),
+                                sum(a[2] for a in aided) / len(aided)) if aided else None
+                aided.clear()
                 self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
                 self._event('slip change detected: measuring')
             return
         self._change_count = 0
+        # Consistency noise of INS and wheels (vibration, encoder quantisation, body pitching):
+        # an EMA of the squared aid innovation, the scale of an INS velocity change the hold
+        # mode cannot tell from noise.
+        self._aid_noise_var += (0.02 if self._aid_noise_var else 1.0) * (
+            (z - v_hist) ** 2 - self._aid_noise_var)
+        aided = self._aided
+        aided.append((t, z, v_hist))
+        while aided[0][0] < t - _ANCHOR_NS:
+            aided.popleft()
         # Turning, the wheels also skid sideways: the held slip is a looser constraint.
         self._aid_update(z, v_hist, p.wheel_aid_std ** 2 * (4.0 if self.is_turning else 1.0))
+
+    def _measured_slip(self, w: float) -> float:
+        """The slip a finished measurement settles on (see :meth:`_wheel_aid_hold`)."""
+        p = self.params
+        vals = self._measure_vals
+        if self._anchor is None:  # from rest (ZUPT-anchored) or after a recovery
+            measured = float(np.median([v[0] for v in vals]))
+        else:
+            # Velocity continuity from the held model before the change: the INS gives only
+            # the velocity change over the short unaided interval, and a change within its
+            # noise (slip_continuity_sigma times the measured aid-innovation spread) is taken
+            # as none.
+            z_before, v_before = self._anchor
+            dv = sum(v[1] for v in vals) / len(vals) - v_before
+            if abs(dv) < p.slip_continuity_sigma * math.sqrt(self._aid_noise_var):
+                dv = 0.0
+            measured = slip_ratio(z_before + dv, sum(v[2] for v in vals) / len(vals))
+        self._anchor = None
+        previous, baseline = self._previous_hold, self._baseline_s
+        if self._from_rest:
+            self._baseline_s, self._from_rest = measured, False
+        elif previous is not None and abs(measured - previous) * abs(w) < self._change_mps(w):
+            measured = previous  # a false alarm: the INS confirms the held slip
+        elif (baseline is not None and p.slip_baseline == 'snap'
+              and abs(measured - baseline) * abs(w) < self._change_mps(w)):
+            # Back on ordinary ground: the slip measured after the last start, anchored on the
+            # zero velocity at rest, is more accurate than a chain of INS intervals.
+            measured = baseline
+        return measured
 
     def _change_mps(self, w: float) -> float:
         """Speed discrepancy that signals a slip change at rim speed ``w``."""

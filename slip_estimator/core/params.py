@@ -101,6 +101,9 @@ class Params:
                         choices=('off', 'hold'))
     slip_measure_s: float = _p(0.5, 's', 'hold mode: unaided INS time to measure a new slip',
                                0.1, 30.0)
+    slip_continuity_sigma: float = _p(2.0, '', 'hold mode: a body-speed change across a slip '
+                                      'change within this many wheel-aid innovation sigmas '
+                                      '(measured online) is taken as none', 0.0, 10.0)
     slip_baseline: str = _p('snap', '', 'hold mode: snap (a re-measured slip within the change '
                             'threshold of the slip measured after the last start from rest '
                             'is that baseline) or off', choices=('snap', 'off'))
