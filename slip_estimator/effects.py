@@ -31,6 +31,15 @@ from slip_estimator.core.types import ImuSample, SlipEstimate, WheelSample
 Window = tuple[float, float, float]
 """(start s, end s) relative to a reference time, and the wheel-speed factor inside."""
 
+TEST17RUN_WINDOWS: tuple[Window, ...] = (
+    (10.0, 16.0, 1.8), (20.0, 26.0, 1.4), (30.0, 36.0, 5.0), (42.0, 50.0, 2.5))
+"""Injected slip on test17run (motion 5.4-54.6 s, s after the first IMU sample): truth slip
+~0.46 (high), 0.31 (medium), 0.81 (extreme), 0.61 (high); every factor keeps the truth away
+from a class bound. Used by the tests and the validation study."""
+TEST17RUN_LAG_S = 0.165
+"""Wheel stamps behind the IMU on test17run (``pathfinder.wheel_imu_lag``): the truth slip
+compares a wheel sample with the GNSS velocity this much earlier."""
+
 
 @dataclass(frozen=True)
 class Effects:
@@ -53,6 +62,17 @@ class Effects:
         if self.wheel_radius_error:
             parts.append(f'declared wheel radius {self.wheel_radius_error:+.0%}')
         return ', '.join(parts) or 'none'
+
+
+UNDECLARED_EFFECTS: tuple[Effects, ...] = (
+    Effects(imu_rotation_deg=(0.0, 3.0, 0.0)),
+    Effects(imu_rotation_deg=(0.0, 0.0, 3.0)),
+    Effects(gyro_scale_error=0.02),
+    Effects(wheel_time_offset_s=0.1),
+    Effects(wheel_time_offset_s=-0.1),
+)
+"""The undeclared effects under which slip accuracy must hold (a wrong wheel radius cannot be
+told from slip and is reported instead, see ``diagnosis``)."""
 
 
 def window_factor(t_rel_s: np.ndarray, windows: Sequence[Window]) -> np.ndarray:
@@ -91,14 +111,15 @@ class SensorData:
             self.rim_mps * scale[:, None])
 
 
-def run_core(params: Params, data: SensorData, odometry_every: int = 10
+def run_core(params: Params, data: SensorData, odometry_every: int = 10,
+             estimator: type[SlipEstimator] = SlipEstimator
              ) -> tuple[SlipEstimator, list[SlipEstimate], np.ndarray]:
-    """Feed the data through :class:`SlipEstimator` in stamp order.
+    """Feed the data through ``estimator`` (a :class:`SlipEstimator`) in stamp order.
 
     Returns the estimator, every slip estimate, and (K, 2) rows of (stamp ns, odometry body-x
     speed m/s) every ``odometry_every`` IMU samples after alignment.
     """
-    est = SlipEstimator(params)
+    est = estimator(params)
     out: list[SlipEstimate] = []
     odo = []
     rim, wns = data.rim_mps, data.wheel_ns
@@ -136,7 +157,8 @@ class LogScore:
 
 
 def score_on_log(log: Any, params: Params, windows: Sequence[Window] = (),
-                 effects: Effects = Effects(), truth_lag_s: float = 0.0) -> LogScore:
+                 effects: Effects = Effects(), truth_lag_s: float = TEST17RUN_LAG_S
+                 ) -> LogScore:
     """Run a real log (injected slip, undeclared effects) through the core; score it on RTK.
 
     Truth slip is eq. 1 between the scaled rim speed with the declared radius and the GNSS

@@ -18,21 +18,8 @@ import pytest
 from realdata import mat_or_skip
 from test_accuracy import run_core
 
-from slip_estimator.effects import Effects, score_on_log
-
-WINDOWS = ((10.0, 16.0, 1.8), (20.0, 26.0, 1.4), (30.0, 36.0, 5.0), (42.0, 50.0, 2.5))
-"""test17run (motion 5.4-54.6 s): truth slip ~0.46 (high), 0.31 (medium), 0.81 (extreme),
-0.61 (high); every factor keeps the truth away from a class bound."""
-TRUTH_LAG_S = 0.165  # wheel stamps behind the IMU on test17run (pathfinder.wheel_imu_lag)
-
-UNDECLARED = [
-    Effects(imu_rotation_deg=(0.0, 3.0, 0.0)),
-    Effects(imu_rotation_deg=(0.0, 0.0, 3.0)),
-    Effects(gyro_scale_error=0.02),
-    Effects(wheel_time_offset_s=0.1),
-    Effects(wheel_time_offset_s=-0.1),
-]
-
+from slip_estimator.effects import (TEST17RUN_WINDOWS, UNDECLARED_EFFECTS, Effects,
+                                     score_on_log)
 
 @functools.lru_cache(maxsize=1)
 def _test17run():
@@ -42,10 +29,10 @@ def _test17run():
     return log, pf.pathfinder_params(log)
 
 
-def score(effects: Effects = Effects(), windows=WINDOWS, **overrides):
+def score(effects: Effects = Effects(), windows=TEST17RUN_WINDOWS, **overrides):
     pytest.importorskip('h5py')
     log, params = _test17run()
-    return score_on_log(log, params.replace(**overrides), windows, effects, TRUTH_LAG_S)
+    return score_on_log(log, params.replace(**overrides), windows, effects)
 
 
 def assert_meets_the_acceptance_levels(res):
@@ -68,12 +55,12 @@ def test_the_papers_method_misses_the_injected_slip():
     assert r.slip.balanced_accuracy < 0.8 and r.speed_rmse_mps > 0.05
 
 
-@pytest.mark.parametrize('effects', UNDECLARED, ids=Effects.label)
+@pytest.mark.parametrize('effects', UNDECLARED_EFFECTS, ids=Effects.label)
 def test_real_log_slip_accuracy_holds_with_an_undeclared_effect(effects):
     assert_meets_the_acceptance_levels(score(effects).slip)
 
 
-@pytest.mark.parametrize('effects', UNDECLARED, ids=Effects.label)
+@pytest.mark.parametrize('effects', UNDECLARED_EFFECTS, ids=Effects.label)
 def test_simulated_slip_accuracy_holds_with_an_undeclared_effect(effects):
     res, speed_rmse = run_core(0, effects)
     assert_meets_the_acceptance_levels(res)

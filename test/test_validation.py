@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from realdata import DATA_DIR, mat_or_skip
 
-CONFIGS = ('A', 'D')
+CONFIGS = ('A', 'E')
 
 
 @pytest.fixture(scope='module')
@@ -46,8 +46,8 @@ def test_every_case_ran_with_its_truth(study) -> None:
     for r in st.results:
         assert r.truth_source == 'gnss_rtk'
         assert all(r.valid.values()), r.valid
-    d = st.get('D', 'test17run')
-    assert d.overrides['wheel_latency_s'] == pytest.approx(st.measured.lag_s['test17run'],
+    e = st.get('E', 'test17run')
+    assert e.overrides['wheel_latency_s'] == pytest.approx(st.measured.lag_s['test17run'],
                                                            abs=1e-3)
     assert st.get('A', 'test17run').overrides['wheel_aid'] == 'off'
 
@@ -64,9 +64,24 @@ def test_metrics_are_finite(study) -> None:
         if r.config != 'A':  # the paper's model has no wheel aid, hence no wheel NIS
             assert _finite(r.metrics['nis_wheel'])
     # The injected run has slip in the medium and higher classes; the recall exists for them.
-    inj = st.get('D', 'test17run', 'injected')
+    inj = st.get('E', 'test17run', 'injected')
     assert any(_finite(x) for x in inj.recall[2:])
     assert np.isfinite(inj.series['slip_truth']).sum() > 100
+
+
+def test_core_level_evidence(study) -> None:
+    """The release experiment and the undeclared-effects runs exist and are finite."""
+    from slip_estimator.effects import UNDECLARED_EFFECTS
+
+    st, _ = study
+    rel = st.evidence['release']
+    assert len(rel['t']) >= 10
+    assert all(np.isfinite(rel[k]).all() for k in ('aided', 'change', 'change_early'))
+    rows = st.evidence['undeclared']
+    assert len(rows) == len(UNDECLARED_EFFECTS) + 2  # + none + a radius error
+    for r in rows:
+        assert _finite(r['balanced_accuracy']) and _finite(r['v_rmse_plain'])
+    assert any('wheel radius' in t for t in rows[-1]['suspects'])
 
 
 def test_report_and_figures(study) -> None:
@@ -79,7 +94,8 @@ def test_report_and_figures(study) -> None:
     assert COMMAND in text.split('## What was run')[0]
     for head in ('### test17run (RTK truth), plain log',
                  '### test17run with injected wheel slip (RTK truth)',
-                 '## Which metric rests on which truth', '## Evidence per effect'):
+                 '## Which metric rests on which truth', '## Evidence per effect',
+                 '## Undeclared effects'):
         assert head in text
     # Slip table: header + separator + one row per configuration, same column count.
     lines = text.splitlines()
