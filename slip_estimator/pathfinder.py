@@ -305,18 +305,14 @@ def wheel_imu_lag(log: PathfinderLog, max_lag_s: float = 0.4) -> tuple[float, fl
     rate. A positive result means a wheel sample stamped t describes the motion at IMU time
     t - lag.
     """
+    from slip_estimator.core.timing import best_lag
+
     t = log.wheel_t_s
     inside = (t > log.imu_t_s[0] + 1.0) & (t < log.imu_t_s[-1] - 1.0)
-    diff = (log.wheel_rate_rps[:, 1] + log.wheel_rate_rps[:, 3]
-            - log.wheel_rate_rps[:, 0] - log.wheel_rate_rps[:, 2])[inside]
-    best = (-2.0, 0.0)
-    for lag in np.arange(-max_lag_s, max_lag_s + 1e-9, 0.005):
-        gz = _window_mean(log.imu_t_s, log.omega_ib_imu[:, 2], t[inside] - lag, 0.1)
-        # z down: a left (counter-clockwise) turn is a negative Gz and a positive R - L.
-        c = np.corrcoef(-gz, diff)[0, 1]
-        if np.isfinite(c) and c > best[0]:
-            best = (float(c), float(lag))
-    return best[1], best[0]
+    r = log.wheel_rate_rps
+    diff = r[:, 1] + r[:, 3] - r[:, 0] - r[:, 2]
+    # z down: a left (counter-clockwise) turn is a negative Gz and a positive R - L.
+    return best_lag(log.imu_t_s, -log.omega_ib_imu[:, 2], t[inside], diff[inside], max_lag_s)
 
 
 def gnss_over_wheel_speed(log: PathfinderLog, wheel_radius_m: float = WHEEL_RADIUS_M,

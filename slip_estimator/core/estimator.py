@@ -45,6 +45,7 @@ from slip_estimator.core.mechanization import mechanize
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, earth_rate_n, gravity_n, llh_to_local_enu
 from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
+from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
 from slip_estimator.core.types import (
     MAX_ANGULAR_RATE_RPS,
@@ -96,6 +97,7 @@ class SlipEstimator:
             'slip_estimates', 'slip_unknown'), 0)
         self._events: deque = deque(maxlen=20)
         self.monitor = ResidualMonitor()
+        self.timing = WheelTimingMonitor()
         self._S = (p.gyro_noise_density ** 2, p.accel_noise_density ** 2, p.accel_bias_psd,
                    p.gyro_bias_psd)
         self._reset_filter()
@@ -169,6 +171,7 @@ class SlipEstimator:
         prev_ns, self.stamp_ns = self.stamp_ns, sample.stamp_ns
         self._omega_ib_b = w_b
         self.stationary.add_imu(f_b, w_b)
+        self.timing.add_imu(sample.stamp_ns, w_l[2])
         if prev_ns is None:
             return self._slip_before_alignment()
         dt = (sample.stamp_ns - prev_ns) * 1e-9
@@ -221,6 +224,9 @@ class SlipEstimator:
         self._last_wheel_ns = sample.stamp_ns
         self._last_stale_ns = None
         self.stationary.add_wheel(sample.stamp_ns, max(abs(v) for v in speeds))
+        if sample.rim_speed_left_mps is not None and sample.rim_speed_right_mps is not None:
+            self.timing.add_wheel(sample.stamp_ns,
+                                  sample.rim_speed_right_mps - sample.rim_speed_left_mps)
         self._pending.append(sample)
         if len(self._pending) > _MAX_PENDING_WHEEL:
             # Wheel stamps far ahead of the IMU (clock offset or IMU dropout): keep the newest.
@@ -764,6 +770,15 @@ class SlipEstimator:
             values[f'nis_mean_{k}'] = v
         values.update(self.monitor.values())
         notes = [f'suspected: {text}' for text in self.monitor.suspects()]
+        lag, corr = self.timing.lag_s, self.timing.correlation
+        values['wheel_lag_s'], values['wheel_lag_correlation'] = lag, corr
+        if corr >= 0.8 and abs(lag - self.params.wheel_latency_s) > 0.05:
+            # The turns say when the wheels moved: a lag the parameters do not declare shifts
+            # every slip step against the body motion.
+            notes.append(f'suspected: wheel stamps {lag * 1e3:+.0f} ms behind the IMU (yaw rate '
+                         f'vs wheel differential in turns, r = {corr:.2f}) against a declared '
+                         f'wheel_latency_s of {self.params.wheel_latency_s:.3f} s: clock offset '
+                         'or undeclared latency')
         level = 1 if notes else 0
         if np.any(np.abs(st.b_g) > 5.0 * self.params.initial_gyro_bias_std):
             level = 1

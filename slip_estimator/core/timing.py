@@ -1,0 +1,102 @@
+"""Time offset between the wheel stamps and the IMU, measured from the data.
+
+A skid-steer rover turns by driving its sides at different speeds, so the wheel differential
+``v_right - v_left`` follows the gyro yaw rate. Cross-correlating the two over a range of lags
+gives the lag of the wheel stamps behind the IMU: a wheel sample stamped ``t`` describes the
+motion at IMU time ``t - lag``. The same routine serves the offline study of a log
+(``pathfinder.wheel_imu_lag``) and the online monitor that names an undeclared offset in the
+node's diagnostics.
+"""
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+
+def correlation_vs_lag(t_fast_s: np.ndarray, x_fast: np.ndarray, t_slow_s: np.ndarray,
+                       y_slow: np.ndarray, lags_s: np.ndarray, window_s: float = 0.1
+                       ) -> np.ndarray:
+    """Correlation of ``y_slow`` with the mean of ``x_fast`` over ``window_s`` around each
+    ``t_slow - lag``, for every lag (NaN where undefined). Times in s, ascending."""
+    t_fast = np.asarray(t_fast_s, dtype=float)
+    t_slow = np.asarray(t_slow_s, dtype=float)
+    y = np.asarray(y_slow, dtype=float)
+    c = np.concatenate([[0.0], np.cumsum(np.asarray(x_fast, dtype=float))])
+    out = np.full(len(lags_s), np.nan)
+    for k, lag in enumerate(lags_s):
+        tq = t_slow - lag
+        i0 = np.searchsorted(t_fast, tq - 0.5 * window_s)
+        i1 = np.searchsorted(t_fast, tq + 0.5 * window_s)
+        ok = i1 > i0
+        if ok.sum() < 3:
+            continue
+        mean = (c[i1[ok]] - c[i0[ok]]) / (i1[ok] - i0[ok])
+        if mean.std() > 0.0 and y[ok].std() > 0.0:
+            out[k] = float(np.corrcoef(mean, y[ok])[0, 1])
+    return out
+
+
+def best_lag(t_fast_s: np.ndarray, x_fast: np.ndarray, t_slow_s: np.ndarray,
+             y_slow: np.ndarray, max_lag_s: float = 0.4, step_s: float = 0.005
+             ) -> tuple[float, float]:
+    """(lag s, correlation) at the correlation peak over ``[-max_lag_s, max_lag_s]``; (NaN,
+    NaN) when no lag gives a correlation."""
+    lags = np.arange(-max_lag_s, max_lag_s + 1e-9, step_s)
+    corr = correlation_vs_lag(t_fast_s, x_fast, t_slow_s, y_slow, lags)
+    if not np.isfinite(corr).any():
+        return float('nan'), float('nan')
+    k = int(np.nanargmax(corr))
+    return float(lags[k]), float(corr[k])
+
+
+class WheelTimingMonitor:
+    """Online lag of the wheel stamps behind the IMU from turns (yaw rate vs differential).
+
+    Parameters
+    ----------
+    horizon_s : data kept for one estimate, s.
+    period_s : time between estimates, s (each costs a few milliseconds).
+    min_turn_rps : the yaw-rate spread (std, rad/s) the horizon needs for an estimate; a
+        straight drive says nothing about timing.
+    """
+
+    def __init__(self, horizon_s: float = 30.0, period_s: float = 10.0,
+                 min_turn_rps: float = 0.05) -> None:
+        self.horizon_ns = int(horizon_s * 1e9)
+        self.period_ns = int(period_s * 1e9)
+        self.min_turn_rps = min_turn_rps
+        self._imu: deque = deque()     # (stamp ns, yaw rate about body z-down, rad/s)
+        self._wheel: deque = deque()   # (stamp ns, v_right - v_left, m/s)
+        self._next_ns: int | None = None
+        self.lag_s = float('nan')
+        self.correlation = float('nan')
+
+    def add_imu(self, stamp_ns: int, yaw_rate_frd_rps: float) -> None:
+        self._imu.append((stamp_ns, yaw_rate_frd_rps))
+        horizon = stamp_ns - self.horizon_ns
+        while self._imu[0][0] < horizon:
+            self._imu.popleft()
+        if self._next_ns is None:
+            self._next_ns = stamp_ns + self.period_ns
+        elif stamp_ns >= self._next_ns:
+            self._next_ns = stamp_ns + self.period_ns
+            self._estimate()
+
+    def add_wheel(self, stamp_ns: int, differential_mps: float) -> None:
+        self._wheel.append((stamp_ns, differential_mps))
+        horizon = stamp_ns - self.horizon_ns
+        while self._wheel[0][0] < horizon:
+            self._wheel.popleft()
+
+    def _estimate(self) -> None:
+        if len(self._wheel) < 20 or len(self._imu) < 100:
+            return
+        imu = np.array(self._imu, dtype=float)
+        wheel = np.array(self._wheel, dtype=float)
+        if imu[:, 1].std() < self.min_turn_rps:
+            return
+        t0 = imu[0, 0]
+        # z down: a left turn is a negative yaw rate and a positive right - left.
+        self.lag_s, self.correlation = best_lag((imu[:, 0] - t0) * 1e-9, -imu[:, 1],
+                                                (wheel[:, 0] - t0) * 1e-9, wheel[:, 1])
