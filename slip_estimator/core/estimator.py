@@ -622,6 +622,11 @@ class SlipEstimator:
         aided.append((t, z, v_hist))
         while aided[0][0] < t - _ANCHOR_NS:
             aided.popleft()
+        if not steady:
+            # Speeding up or braking, the slip of a skid-steer rover is not the cruise slip
+            # held (it goes to 0 or 1 near a stop), and the INS is good over the few tenths
+            # of a second a speed change takes: no aid.
+            return
         # Turning, the wheels also skid sideways: the held slip is a looser constraint.
         self._aid_update(z, v_hist, p.wheel_aid_std ** 2 * (4.0 if self.is_turning else 1.0))
 
