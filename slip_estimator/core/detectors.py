@@ -11,41 +11,75 @@ import numpy as np
 
 
 class ImuWindow:
-    """Ring buffer of the most recent IMU samples (body frame), for window statistics."""
+    """Ring buffer of the most recent IMU samples (body frame), for window statistics.
+
+    ``add`` runs at the IMU rate and only queues the sample; the queue is written into the
+    buffer in one operation when statistics are asked for (at most every few samples), and
+    the window variance is kept until the next sample.
+    """
 
     def __init__(self, n_samples: int) -> None:
         self._buf = np.zeros((max(2, n_samples), 6))
         self._n = 0
         self._i = 0
+        self._queue: list[tuple[np.ndarray, np.ndarray]] = []
+        self._var: np.ndarray | None = None
 
     def add(self, f_ib_b: np.ndarray, omega_ib_b: np.ndarray) -> None:
         """Append one sample, dropping the oldest when full."""
-        row = self._buf[self._i]
-        row[:3] = f_ib_b
-        row[3:] = omega_ib_b
-        self._i = (self._i + 1) % len(self._buf)
-        self._n = min(self._n + 1, len(self._buf))
+        self._queue.append((f_ib_b, omega_ib_b))
+        self._var = None
+        if len(self._queue) >= len(self._buf):
+            self._flush()
+
+    def _flush(self) -> None:
+        queue = self._queue
+        if not queue:
+            return
+        size = len(self._buf)
+        rows = np.array(queue[-size:], dtype=float).reshape(-1, 6)
+        k = len(rows)
+        self._buf[(self._i + np.arange(k)) % size] = rows
+        self._i = (self._i + k) % size
+        self._n = min(self._n + len(queue), size)
+        queue.clear()
 
     def clear(self) -> None:
         """Forget all samples."""
         self._n = 0
         self._i = 0
+        self._queue.clear()
+        self._var = None
 
     @property
     def n(self) -> int:
         """Number of samples held."""
-        return self._n
+        return min(self._n + len(self._queue), len(self._buf))
 
     @property
     def full(self) -> bool:
         """True once the window holds its nominal number of samples."""
-        return self._n == len(self._buf)
+        return self.n == len(self._buf)
 
     def samples(self, last: int | None = None) -> np.ndarray:
         """The newest ``last`` samples (all by default) as rows (f_x, f_y, f_z, w_x, w_y, w_z)."""
+        self._flush()
         n = self._n if last is None else min(last, self._n)
         idx = (self._i - n + np.arange(n)) % len(self._buf)
         return self._buf[idx]
+
+    def variance(self) -> np.ndarray:
+        """Per-column (population) variance of the samples held, as ``samples().var(axis=0)``
+        computes it (the same operations), cached until the next sample."""
+        if self._var is None:
+            a = self.samples()
+            n = len(a)
+            mean = a.sum(axis=0, keepdims=True)
+            mean /= n
+            x = a - mean
+            x *= x
+            self._var = x.sum(axis=0) / n
+        return self._var
 
 
 class StationaryDetector:
@@ -88,7 +122,7 @@ class StationaryDetector:
             return False
         # Per-axis spread: the specific-force norm barely changes when the rover starts to
         # accelerate horizontally (sqrt(g^2 + a^2) ~ g), the axes do.
-        std = self.window.samples().std(axis=0)
+        std = np.sqrt(self.window.variance())
         return bool(std[:3].max() <= self.accel_std_max_mps2
                     and std[3:].max() <= self.gyro_std_max_rps)
 

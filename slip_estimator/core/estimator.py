@@ -36,13 +36,14 @@ from slip_estimator.core.detectors import StationaryDetector, TurnDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.error_model import (
     curvilinear_to_ned,
+    curvilinear_to_ned_diag,
     process_noise,
     system_matrix,
 )
 from slip_estimator.core.measurements import NonHolonomic, ZeroAngularRate, ZeroVelocity
-from slip_estimator.core.mechanization import mechanize
+from slip_estimator.core.mechanization import mechanize_step
 from slip_estimator.core.params import Params
-from slip_estimator.core.planet import PLANETS, earth_rate_n, gravity_n, llh_to_local_enu
+from slip_estimator.core.planet import PLANETS, LocalEnu, earth_rate_n, gravity_n
 from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
 from slip_estimator.core.types import (
@@ -57,10 +58,16 @@ from slip_estimator.core.types import (
 
 _NS = 1_000_000_000
 _HISTORY_S = 2.0
+_HISTORY_NS = int(_HISTORY_S * _NS)
 _MAX_PENDING_WHEEL = 50
 _CHANGE_SAMPLES = 3  # consecutive wheel samples beyond the change threshold
-_POSE_IDX = np.r_[POS, ATT]
-_TWIST_IDX = np.r_[VEL, BG]
+# Odometry covariances. Pose: (position, attitude psi) in odom (ENU) is a signed permutation
+# of (POS, ATT) scaled by 1 / T_r(n)^p, written as indices and signs: rows/cols
+# (E, N, U) <- (lambda, L, h) and (psi_E, psi_N, psi_U) <- (psi_E, psi_N, -psi_D).
+_POSE_IX = np.ix_([7, 6, 8, 1, 0, 2], [7, 6, 8, 1, 0, 2])
+_POSE_SIGN = np.array([1.0, 1.0, -1.0, 1.0, 1.0, -1.0])
+_TWIST_IX = np.ix_(np.r_[VEL, BG], np.r_[VEL, BG])
+_FLU_FRD_SIGN = np.array([1.0, -1.0, -1.0])  # frames.C_FLU_FRD as a diagonal
 
 
 class SlipEstimator:
@@ -110,13 +117,16 @@ class SlipEstimator:
             p.stationary_gyro_std, p.stationary_wheel_speed_mps, int(p.wheel_timeout_s * _NS))
         self._align_rows: list[np.ndarray] = []
         self._acc_tau = 0.0
-        self._acc_f_n = np.zeros(3)
+        # Per-sample accumulators as lists of floats (numpy costs ~1 us per 3-vector operation;
+        # the element-wise float sums are the same).
+        self._acc_f_n = [0.0, 0.0, 0.0]  # sum of f_ib_n * dt since the last propagation
         self._acc_n = 0
         self._next_update_ns: int | None = None
-        self._since_update = np.zeros(3)
+        self._since_update = [0.0, 0.0, 0.0]  # sum of omega_ib_b since the last update
         self._since_update_n = 0
         self._omega_ib_b = np.zeros(3)
         self._llh0: np.ndarray | None = None
+        self._odom_frame: LocalEnu | None = None
         self._history: deque = deque()
         self._pending: deque = deque()
         self._last_wheel_ns: int | None = None
@@ -164,7 +174,7 @@ class SlipEstimator:
         if prev_ns is None:
             return self._slip_before_alignment()
         dt = (sample.stamp_ns - prev_ns) * 1e-9
-        self._check_saturation(f_b, w_b)
+        self._check_saturation(f_l, w_l)
         if dt > self.params.max_imu_gap_s:
             self.counters['imu_gaps'] += 1
             self._event(f'IMU gap of {dt:.2f} s')
@@ -179,11 +189,17 @@ class SlipEstimator:
             self._collect_alignment(f_b, w_b, sample.stamp_ns)
             return self._slip_before_alignment()
         # 3. mechanization
-        f_n = mechanize(self.state, f_b, w_b, dt, self.planet)
+        fN, fE, fD = mechanize_step(self.state, f_l, w_l, dt, self.planet)
         self._acc_tau += dt
-        self._acc_f_n += f_n * dt
+        acc = self._acc_f_n
+        acc[0] += fN * dt
+        acc[1] += fE * dt
+        acc[2] += fD * dt
         self._acc_n += 1
-        self._since_update += w_b
+        acc = self._since_update
+        acc[0] += w_l[0]
+        acc[1] += w_l[1]
+        acc[2] += w_l[2]
         self._since_update_n += 1
         # 4. covariance propagation (decimated), and 5. pseudo-measurements at the first
         # propagation epoch after they are due (so an update never forces an extra propagation)
@@ -194,7 +210,7 @@ class SlipEstimator:
                 self._check_filter_health(sample.stamp_ns)
                 if self.state is None:
                     return []
-        self._record_history(sample.stamp_ns, w_b)
+        self._record_history(sample.stamp_ns, w_l)
         # 6. slip
         return self._due_slip()
 
@@ -226,11 +242,11 @@ class SlipEstimator:
     def _event(self, text: str) -> None:
         self._events.append((self.stamp_ns, text))
 
-    def _check_saturation(self, f_b: np.ndarray, w_b: np.ndarray) -> None:
+    def _check_saturation(self, f_b: list[float], w_b: list[float]) -> None:
         p = self.params
-        if ((p.accel_range_mps2 > 0.0 and float(np.abs(f_b).max()) >= 0.999 * p.accel_range_mps2)
+        if ((p.accel_range_mps2 > 0.0 and max(map(abs, f_b)) >= 0.999 * p.accel_range_mps2)
                 or (p.gyro_range_rps > 0.0
-                    and float(np.abs(w_b).max()) >= 0.999 * p.gyro_range_rps)):
+                    and max(map(abs, w_b)) >= 0.999 * p.gyro_range_rps)):
             self.counters['imu_saturated'] += 1
             self._event('IMU at its measurement range (clipping)')
 
@@ -253,7 +269,7 @@ class SlipEstimator:
         d[VEL] = 1.0
         d[POS] = (np.diag(T) * (0.01 + p.max_wheel_speed_mps * gap_s)) ** 2
         self.P = np.diag(d)
-        self._acc_tau, self._acc_f_n, self._acc_n = 0.0, np.zeros(3), 0
+        self._acc_tau, self._acc_f_n, self._acc_n = 0.0, [0.0, 0.0, 0.0], 0
         self._history.clear()
         self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
         self._recovering_until_ns = stamp_ns + int(p.recovery_s * _NS)
@@ -314,6 +330,7 @@ class SlipEstimator:
         self.state = NavState(C_b_n, np.zeros(3), llh, np.zeros(3), b_g)
         # Base_link position at alignment: the origin of odom.
         self._llh0 = self._base_llh()
+        self._odom_frame = LocalEnu(self.planet, self._llh0)
         self.P = self._initial_covariance(f)
         self._next_update_ns = stamp_ns
         self._align_rows = []
@@ -343,14 +360,14 @@ class SlipEstimator:
         if self._acc_n == 0:
             return
         tau = self._acc_tau
-        F = system_matrix(self.state, self._acc_f_n / tau, self.planet)
+        F = system_matrix(self.state, np.array(self._acc_f_n) / tau, self.planet)
         Ft = F * tau
         Phi = np.eye(N_ERR) + Ft + 0.5 * (Ft @ Ft)
         Q = process_noise(self.state, F, tau, *self._vibration_psd(), self.planet)
         self.P = kalman.predict(self.P, Phi, Q)
         self.state.C_b_n = frames.orthonormalize(self.state.C_b_n)
         self._acc_tau = 0.0
-        self._acc_f_n = np.zeros(3)
+        self._acc_f_n = [0.0, 0.0, 0.0]
         self._acc_n = 0
 
     def _vibration_psd(self) -> tuple[float, float, float, float]:
@@ -368,7 +385,7 @@ class SlipEstimator:
         k = self.params.vibration_noise_fraction
         if k <= 0.0 or self.stationary.window.n < 2:
             return self._S
-        var = self.stationary.window.samples().var(axis=0)
+        var = self.stationary.window.variance()
         dt = self._nominal_dt
         # Only the spread beyond the white noise already in S (sigma^2 = S / dt per sample).
         excess_g = max(0.0, float(var[3:].max()) - S_rg / dt)
@@ -408,9 +425,9 @@ class SlipEstimator:
         self._propagate_covariance()
         self.last_records = []
         self._next_update_ns = stamp_ns + int(_NS / p.update_rate_hz)
-        w_mean = self._since_update / max(1, self._since_update_n)
+        w_mean = np.array(self._since_update) / max(1, self._since_update_n)
         period = max(1, self._since_update_n) * self._nominal_dt
-        self._since_update = np.zeros(3)
+        self._since_update = [0.0, 0.0, 0.0]
         self._since_update_n = 0
         self.is_stationary = self.stationary.is_stationary(stamp_ns)
         w_nb_b = w_mean - self.state.b_g
@@ -430,21 +447,21 @@ class SlipEstimator:
                         self.nhc.jacobian(self.state, rows), R, tuple(names[r] for r in rows))
 
     # ------------------------------------------------------------------ slip
-    def _base_velocity_b(self, omega_ib_b: np.ndarray) -> np.ndarray:
-        """Velocity of base_link's origin resolved in b (FRD), m/s."""
-        return self.nhc.point_velocity_b(self.state, omega_ib_b)
-
-    def _record_history(self, stamp_ns: int, w_b: np.ndarray) -> None:
+    def _record_history(self, stamp_ns: int, w_b: list[float]) -> None:
         # Forward component of NonHolonomic.point_velocity_b, in scalars (runs at IMU rate;
         # the planet-rate part of the lever-arm term, < 3e-5 m/s, is left out).
         st = self.state
-        wx, wy, wz = (w_b - st.b_g).tolist()
+        _, bg_y, bg_z = st.b_g.tolist()
+        wy, wz = w_b[1] - bg_y, w_b[2] - bg_z
         _, ly, lz = self._l_bw_b
-        v_fwd = float(st.C_b_n[:, 0] @ st.v_eb_n) + wy * lz - wz * ly
-        self._history.append((stamp_ns, v_fwd, wz))
-        horizon = stamp_ns - int(_HISTORY_S * _NS)
-        while self._history and self._history[0][0] < horizon:
-            self._history.popleft()
+        c1, c2, c3 = st.C_b_n[:, 0].tolist()
+        vN, vE, vD = st.v_eb_n.tolist()
+        v_fwd = (c1 * vN + c2 * vE + c3 * vD) + wy * lz - wz * ly
+        history = self._history
+        history.append((stamp_ns, v_fwd, wz))
+        horizon = stamp_ns - _HISTORY_NS
+        while history[0][0] < horizon:  # never empties: the newest entry is not older
+            history.popleft()
 
     def _history_at(self, stamp_ns: int) -> tuple[float, float] | None:
         """Forward speed and yaw rate (FRD) at ``stamp_ns`` by linear interpolation."""
@@ -631,36 +648,39 @@ class SlipEstimator:
         return [self._unknown(self.stamp_ns)]
 
     # ------------------------------------------------------------------ outputs
-    def _base_llh(self) -> np.ndarray:
-        r_bw_n = self.state.C_b_n @ self.l_bw_b
-        return self.state.llh + curvilinear_to_ned(self.planet, self.state.llh[0],
-                                                   self.state.llh[2]) @ r_bw_n
+    def _base_llh(self, T_diag: np.ndarray | None = None) -> np.ndarray:
+        """Curvilinear position of base_link; ``T_diag`` is the diagonal of
+        ``curvilinear_to_ned`` at the IMU position when the caller has it."""
+        st = self.state
+        if T_diag is None:
+            T_diag = curvilinear_to_ned_diag(self.planet, st.llh[0], st.llh[2])
+        return st.llh + T_diag * (st.C_b_n @ self.l_bw_b)
 
     def odometry(self) -> OdometryEstimate | None:
         """Current fused solution of base_link in odom, or None before alignment."""
         if self.state is None:
             return None
         st = self.state
-        p_o = llh_to_local_enu(self.planet, self._base_llh(), self._llh0)
+        T_diag = curvilinear_to_ned_diag(self.planet, st.llh[0], st.llh[2])
+        p_o = self._odom_frame(self._base_llh(T_diag))
         C_base_odom = frames.body_ned_to_base_enu(st.C_b_n)
-        w_b = self._omega_ib_b - st.b_g - st.C_b_n.T @ earth_rate_n(self.planet, st.llh[0])
-        v_b = self._base_velocity_b(self._omega_ib_b)
+        w_b = self.nhc.body_rate_b(st, self._omega_ib_b)
+        v_b = self.nhc.point_velocity_from_rate_b(st, w_b)
         # Covariances from P of the last propagation epoch (at most covariance_decimation
         # samples old). Pose: position (curvilinear -> NED m -> ENU) and attitude psi (NED ->
-        # ENU); twist: velocity (NED -> base_link) and gyro bias (b -> base_link) plus noise.
-        T_inv = 1.0 / np.diag(curvilinear_to_ned(self.planet, st.llh[0], st.llh[2]))
+        # ENU), i.e. M P M^T with M = diag(C_ENU_NED T^-1, C_ENU_NED), a scaled signed
+        # permutation: indexing and scaling give the same numbers. Twist: velocity (NED ->
+        # base_link) and gyro bias (b -> base_link) plus the gyro noise.
+        s = _POSE_SIGN.copy()
+        s[:3] /= T_diag[[1, 0, 2]]
+        pose_cov = (s[:, None] * self.P[_POSE_IX]) * s
         M = np.zeros((6, 6))
-        M[0:3, 0:3] = frames.C_ENU_NED * T_inv
-        M[3:6, 3:6] = frames.C_ENU_NED
-        P_pa = self.P[_POSE_IDX][:, _POSE_IDX]
-        pose_cov = M @ P_pa @ M.T
-        M[0:3, 0:3] = frames.C_FLU_FRD @ st.C_b_n.T
+        M[0:3, 0:3] = _FLU_FRD_SIGN[:, None] * st.C_b_n.T
         M[3:6, 3:6] = frames.C_FLU_FRD
-        P_vb = self.P[_TWIST_IDX][:, _TWIST_IDX]
-        twist_cov = M @ P_vb @ M.T
-        twist_cov[3:6, 3:6] += np.eye(3) * self.params.gyro_noise_density ** 2 / self._nominal_dt
+        twist_cov = M @ self.P[_TWIST_IX] @ M.T
+        twist_cov[[3, 4, 5], [3, 4, 5]] += self.params.gyro_noise_density ** 2 / self._nominal_dt
         return OdometryEstimate(self.stamp_ns, p_o, frames.dcm_to_quat_wxyz(C_base_odom),
-                                frames.C_FLU_FRD @ v_b, frames.C_FLU_FRD @ w_b,
+                                _FLU_FRD_SIGN * v_b, _FLU_FRD_SIGN * w_b,
                                 kalman.symmetrize(pose_cov), kalman.symmetrize(twist_cov))
 
     def health(self) -> Health:
