@@ -11,17 +11,16 @@ import numpy as np
 
 
 class ImuWindow:
-    """Ring buffer of the most recent IMU samples (body frame), for window statistics.
+    """The most recent IMU samples (body frame), oldest first, for window statistics.
 
-    ``add`` runs at the IMU rate and only queues the sample; the queue is written into the
-    buffer in one operation when statistics are asked for (at most every few samples), and
-    the window variance is kept until the next sample.
+    ``add`` runs at the IMU rate and only queues the sample; the queue is moved into the
+    buffer (older rows shifted out) in two array operations when statistics are asked for
+    (at most every few samples), and the window variance is kept until the next sample.
     """
 
     def __init__(self, n_samples: int) -> None:
-        self._buf = np.zeros((max(2, n_samples), 6))
+        self._buf = np.zeros((max(2, n_samples), 6))  # the newest self._n rows are the window
         self._n = 0
-        self._i = 0
         self._queue: list[tuple[np.ndarray, np.ndarray]] = []
         self._var: np.ndarray | None = None
 
@@ -36,18 +35,18 @@ class ImuWindow:
         queue = self._queue
         if not queue:
             return
-        size = len(self._buf)
-        rows = np.array(queue[-size:], dtype=float).reshape(-1, 6)
-        k = len(rows)
-        self._buf[(self._i + np.arange(k)) % size] = rows
-        self._i = (self._i + k) % size
-        self._n = min(self._n + len(queue), size)
+        buf, size, k = self._buf, len(self._buf), len(queue)
+        if k >= size:
+            buf[:] = np.array(queue[-size:], dtype=float).reshape(size, 6)
+        else:
+            buf[:-k] = buf[k:]
+            buf[-k:] = np.array(queue, dtype=float).reshape(k, 6)
+        self._n = min(self._n + k, size)
         queue.clear()
 
     def clear(self) -> None:
         """Forget all samples."""
         self._n = 0
-        self._i = 0
         self._queue.clear()
         self._var = None
 
@@ -62,23 +61,24 @@ class ImuWindow:
         return self.n == len(self._buf)
 
     def samples(self, last: int | None = None) -> np.ndarray:
-        """The newest ``last`` samples (all by default) as rows (f_x, f_y, f_z, w_x, w_y, w_z)."""
+        """The newest ``last`` samples (all by default) as rows (f_x, f_y, f_z, w_x, w_y, w_z),
+        oldest first (a copy)."""
         self._flush()
         n = self._n if last is None else min(last, self._n)
-        idx = (self._i - n + np.arange(n)) % len(self._buf)
-        return self._buf[idx]
+        return self._buf[len(self._buf) - n:].copy()
 
     def variance(self) -> np.ndarray:
         """Per-column (population) variance of the samples held, as ``samples().var(axis=0)``
-        computes it (the same operations), cached until the next sample."""
+        computes it (the same operations, rows in the same order), cached until the next
+        sample."""
         if self._var is None:
-            a = self.samples()
-            n = len(a)
+            self._flush()
+            a = self._buf[len(self._buf) - self._n:]
             mean = a.sum(axis=0, keepdims=True)
-            mean /= n
+            mean /= self._n
             x = a - mean
             x *= x
-            self._var = x.sum(axis=0) / n
+            self._var = x.sum(axis=0) / self._n
         return self._var
 
 
@@ -122,9 +122,9 @@ class StationaryDetector:
             return False
         # Per-axis spread: the specific-force norm barely changes when the rover starts to
         # accelerate horizontally (sqrt(g^2 + a^2) ~ g), the axes do.
-        std = np.sqrt(self.window.variance())
-        return bool(std[:3].max() <= self.accel_std_max_mps2
-                    and std[3:].max() <= self.gyro_std_max_rps)
+        v = self.window.variance().tolist()
+        return (all(math.sqrt(x) <= self.accel_std_max_mps2 for x in v[:3])
+                and all(math.sqrt(x) <= self.gyro_std_max_rps for x in v[3:]))
 
     def is_stationary(self, now_ns: int) -> bool:
         """The decision at ``now_ns``."""

@@ -9,6 +9,7 @@ Here ``R_N' = R_N(L) + h`` and ``R_E' = R_E(L) + h``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -45,7 +46,8 @@ _F_BLOCKS = _flat_indices(((ATT, ATT), (ATT, VEL), (ATT, POS), (ATT, BG), (VEL, 
                            (VEL, VEL), (VEL, POS), (VEL, BA), (POS, VEL), (POS, POS)))
 
 
-def system_matrix(state: NavState, f_ib_n: np.ndarray, planet: Planet) -> np.ndarray:
+def system_matrix(state: NavState, f_ib_n: np.ndarray | Sequence[float],
+                  planet: Planet) -> np.ndarray:
     """Continuous-time error-state system matrix F (15x15), paper eq. 9 and 31-38.
 
     Written as one list of the entries of its non-zero 3x3 blocks (row-major), put into the
@@ -53,7 +55,7 @@ def system_matrix(state: NavState, f_ib_n: np.ndarray, planet: Planet) -> np.nda
     """
     L, _, h = state.llh.tolist()
     vN, vE, vD = state.v_eb_n.tolist()
-    fN, fE, fD = np.asarray(f_ib_n, dtype=float).tolist()
+    fN, fE, fD = f_ib_n.tolist() if isinstance(f_ib_n, np.ndarray) else map(float, f_ib_n)
     w = planet.omega_ie_rps
     R_N, R_E = radii_of_curvature(planet, L)
     RN, RE = R_N + h, R_E + h

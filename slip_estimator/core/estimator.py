@@ -68,6 +68,8 @@ _POSE_IX = np.ix_([7, 6, 8, 1, 0, 2], [7, 6, 8, 1, 0, 2])
 _POSE_SIGN = np.array([1.0, 1.0, -1.0, 1.0, 1.0, -1.0])
 _TWIST_IX = np.ix_(np.r_[VEL, BG], np.r_[VEL, BG])
 _FLU_FRD_SIGN = np.array([1.0, -1.0, -1.0])  # frames.C_FLU_FRD as a diagonal
+_EYE_15 = np.eye(N_ERR)
+_EYE_15.flags.writeable = False
 
 
 class SlipEstimator:
@@ -360,9 +362,13 @@ class SlipEstimator:
         if self._acc_n == 0:
             return
         tau = self._acc_tau
-        F = system_matrix(self.state, np.array(self._acc_f_n) / tau, self.planet)
+        a_N, a_E, a_D = self._acc_f_n
+        F = system_matrix(self.state, (a_N / tau, a_E / tau, a_D / tau), self.planet)
         Ft = F * tau
-        Phi = np.eye(N_ERR) + Ft + 0.5 * (Ft @ Ft)
+        Phi = Ft + _EYE_15  # Phi = I + F tau + (F tau)^2 / 2
+        Ft2 = Ft @ Ft
+        Ft2 *= 0.5
+        Phi += Ft2
         Q = process_noise(self.state, F, tau, *self._vibration_psd(), self.planet)
         self.P = kalman.predict(self.P, Phi, Q)
         self.state.C_b_n = frames.orthonormalize(self.state.C_b_n)
@@ -385,11 +391,11 @@ class SlipEstimator:
         k = self.params.vibration_noise_fraction
         if k <= 0.0 or self.stationary.window.n < 2:
             return self._S
-        var = self.stationary.window.variance()
+        var = self.stationary.window.variance().tolist()  # finite: samples are checked
         dt = self._nominal_dt
         # Only the spread beyond the white noise already in S (sigma^2 = S / dt per sample).
-        excess_g = max(0.0, float(var[3:].max()) - S_rg / dt)
-        excess_a = max(0.0, float(var[:3].max()) - S_ra / dt)
+        excess_g = max(0.0, max(var[3:]) - S_rg / dt)
+        excess_a = max(0.0, max(var[:3]) - S_ra / dt)
         return S_rg + k * k * excess_g * dt, S_ra + k * k * excess_a * dt, S_bad, S_bgd
 
     def _apply(self, name: str, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,

@@ -24,6 +24,8 @@ C_FLU_FRD = np.diag([1.0, -1.0, -1.0])
 """Takes a vector resolved in an FLU frame to the FRD frame with the same x axis (and back)."""
 C_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 """Takes a vector resolved in ENU to NED (and back)."""
+_EYE_3 = np.eye(3)
+_EYE_3.flags.writeable = False
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -87,7 +89,7 @@ def rotvec_to_dcm(phi: np.ndarray) -> np.ndarray:
 def orthonormalize(C: np.ndarray) -> np.ndarray:
     """Removes the numerical drift of an integrated DCM: ``C - (C C^T - I) C / 2``, the
     first-order step towards the nearest rotation (Savage; exact to O(e^2) for an error e)."""
-    return C - 0.5 * (C @ C.T - np.eye(3)) @ C
+    return C - 0.5 * (C @ C.T - _EYE_3) @ C
 
 
 def dcm_to_quat_wxyz(C: np.ndarray) -> np.ndarray:
