@@ -36,14 +36,19 @@ from slip_estimator.core.detectors import StationaryDetector, TurnDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.error_model import (
     curvilinear_to_ned,
-    curvilinear_to_ned_diag,
     process_noise,
     system_matrix,
 )
 from slip_estimator.core.measurements import NonHolonomic, ZeroAngularRate, ZeroVelocity
 from slip_estimator.core.mechanization import mechanize_step
 from slip_estimator.core.params import Params
-from slip_estimator.core.planet import PLANETS, LocalEnu, earth_rate_n, gravity_n
+from slip_estimator.core.planet import (
+    PLANETS,
+    LocalEnu,
+    earth_rate_n,
+    gravity_n,
+    radii_of_curvature,
+)
 from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
 from slip_estimator.core.types import (
@@ -654,39 +659,56 @@ class SlipEstimator:
         return [self._unknown(self.stamp_ns)]
 
     # ------------------------------------------------------------------ outputs
-    def _base_llh(self, T_diag: np.ndarray | None = None) -> np.ndarray:
-        """Curvilinear position of base_link; ``T_diag`` is the diagonal of
-        ``curvilinear_to_ned`` at the IMU position when the caller has it."""
-        st = self.state
-        if T_diag is None:
-            T_diag = curvilinear_to_ned_diag(self.planet, st.llh[0], st.llh[2])
-        return st.llh + T_diag * (st.C_b_n @ self.l_bw_b)
+    def _base_llh(self) -> np.ndarray:
+        r_bw_n = self.state.C_b_n @ self.l_bw_b
+        return self.state.llh + curvilinear_to_ned(self.planet, self.state.llh[0],
+                                                   self.state.llh[2]) @ r_bw_n
 
     def odometry(self) -> OdometryEstimate | None:
-        """Current fused solution of base_link in odom, or None before alignment."""
+        """Current fused solution of base_link in odom, or None before alignment.
+
+        Output only (nothing here feeds back into the filter), on floats where numpy would
+        cost more than the arithmetic; a test checks it against the matrix formulas."""
         if self.state is None:
             return None
         st = self.state
-        T_diag = curvilinear_to_ned_diag(self.planet, st.llh[0], st.llh[2])
-        p_o = self._odom_frame(self._base_llh(T_diag))
-        C_base_odom = frames.body_ned_to_base_enu(st.C_b_n)
-        w_b = self.nhc.body_rate_b(st, self._omega_ib_b)
-        v_b = self.nhc.point_velocity_from_rate_b(st, w_b)
+        L, lam, h = st.llh.tolist()
+        c11, c12, c13, c21, c22, c23, c31, c32, c33 = C = st.C_b_n.ravel().tolist()
+        vN, vE, vD = st.v_eb_n.tolist()
+        lx, ly, lz = self._l_bw_b
+        R_N, R_E = radii_of_curvature(self.planet, L)
+        T_L, T_lam = 1.0 / (R_N + h), 1.0 / ((R_E + h) * math.cos(L))  # T_r(n)^p, T_h = -1
+        # base_link position: llh + T C_b_n l_bw_b, in odom.
+        p_o = self._odom_frame.enu(L + T_L * (c11 * lx + c12 * ly + c13 * lz),
+                                   lam + T_lam * (c21 * lx + c22 * ly + c23 * lz),
+                                   h - (c31 * lx + c32 * ly + c33 * lz))
+        # C_base_odom = C_ENU_NED C_b_n C_FLU_FRD: rows N, E swapped, D negated; y, z negated.
+        q = frames.dcm_to_quat_wxyz_floats(c21, -c22, -c23, c11, -c12, -c13, -c31, c32, c33)
+        # omega_eb_b = omega_ib_b - b_g - C_n_b omega_ie_n; v = C_n_b v_eb_n + omega_eb_b x l.
+        w_ie = self.planet.omega_ie_rps
+        w_ie_N, w_ie_D = w_ie * math.cos(L), -w_ie * math.sin(L)
+        o1, o2, o3 = self._omega_ib_b.tolist()
+        b1, b2, b3 = st.b_g.tolist()
+        wx = o1 - b1 - (c11 * w_ie_N + c31 * w_ie_D)
+        wy = o2 - b2 - (c12 * w_ie_N + c32 * w_ie_D)
+        wz = o3 - b3 - (c13 * w_ie_N + c33 * w_ie_D)
+        vx = c11 * vN + c21 * vE + c31 * vD + (wy * lz - wz * ly)
+        vy = c12 * vN + c22 * vE + c32 * vD + (wz * lx - wx * lz)
+        vz = c13 * vN + c23 * vE + c33 * vD + (wx * ly - wy * lx)
         # Covariances from P of the last propagation epoch (at most covariance_decimation
         # samples old). Pose: position (curvilinear -> NED m -> ENU) and attitude psi (NED ->
         # ENU), i.e. M P M^T with M = diag(C_ENU_NED T^-1, C_ENU_NED), a scaled signed
-        # permutation: indexing and scaling give the same numbers. Twist: velocity (NED ->
-        # base_link) and gyro bias (b -> base_link) plus the gyro noise.
-        s = _POSE_SIGN.copy()
-        s[:3] /= T_diag[[1, 0, 2]]
+        # permutation: indexing and scaling. Twist: velocity (NED -> base_link) and gyro bias
+        # (b -> base_link), M = diag(C_FLU_FRD C_n_b, C_FLU_FRD), plus the gyro noise.
+        s = np.array((1.0 / T_lam, 1.0 / T_L, 1.0, 1.0, 1.0, -1.0))
         pose_cov = (s[:, None] * self.P[_POSE_IX]) * s
         M = np.zeros((6, 6))
-        M[0:3, 0:3] = _FLU_FRD_SIGN[:, None] * st.C_b_n.T
-        M[3:6, 3:6] = frames.C_FLU_FRD
+        M[:3, :3] = (C[0:9:3], [-c for c in C[1:9:3]], [-c for c in C[2:9:3]])
+        M[[3, 4, 5], [3, 4, 5]] = _FLU_FRD_SIGN
         twist_cov = M @ self.P[_TWIST_IX] @ M.T
         twist_cov[[3, 4, 5], [3, 4, 5]] += self.params.gyro_noise_density ** 2 / self._nominal_dt
-        return OdometryEstimate(self.stamp_ns, p_o, frames.dcm_to_quat_wxyz(C_base_odom),
-                                _FLU_FRD_SIGN * v_b, _FLU_FRD_SIGN * w_b,
+        return OdometryEstimate(self.stamp_ns, np.array(p_o), np.array(q),
+                                np.array((vx, -vy, -vz)), np.array((wx, -wy, -wz)),
                                 kalman.symmetrize(pose_cov), kalman.symmetrize(twist_cov))
 
     def health(self) -> Health:

@@ -130,11 +130,15 @@ def transport_rate_n(planet: Planet, L_rad: float, h_m: float, v_eb_n: np.ndarra
 
 def llh_to_ecef(planet: Planet, L_rad: float, lambda_rad: float, h_m: float) -> np.ndarray:
     """Curvilinear (latitude, longitude, height) to planet-fixed Cartesian, m (eq. 2.112)."""
+    return np.array(_llh_to_ecef_xyz(planet, L_rad, lambda_rad, h_m))
+
+
+def _llh_to_ecef_xyz(planet: Planet, L_rad: float, lambda_rad: float,
+                     h_m: float) -> tuple[float, float, float]:
     _, R_E = radii_of_curvature(planet, L_rad)
     cL, sL = math.cos(L_rad), math.sin(L_rad)
-    return np.array([(R_E + h_m) * cL * math.cos(lambda_rad),
-                     (R_E + h_m) * cL * math.sin(lambda_rad),
-                     ((1.0 - planet.e2) * R_E + h_m) * sL])
+    return ((R_E + h_m) * cL * math.cos(lambda_rad), (R_E + h_m) * cL * math.sin(lambda_rad),
+            ((1.0 - planet.e2) * R_E + h_m) * sL)
 
 
 def ecef_to_enu_dcm(L_rad: float, lambda_rad: float) -> np.ndarray:
@@ -152,13 +156,20 @@ class LocalEnu:
         self.planet = planet
         self.llh0 = np.array(llh0, dtype=float)
         L0, lambda0, h0 = self.llh0.tolist()
-        self._r0_e = llh_to_ecef(planet, L0, lambda0, h0)
-        self._C_e_enu = ecef_to_enu_dcm(L0, lambda0)
+        self._r0_e = _llh_to_ecef_xyz(planet, L0, lambda0, h0)
+        self._C_e_enu = ecef_to_enu_dcm(L0, lambda0).tolist()
 
     def __call__(self, llh: np.ndarray) -> np.ndarray:
         """Position (m, ENU axes at the origin) of ``llh`` relative to the origin."""
-        L, lam, h = np.asarray(llh, dtype=float).tolist()
-        return self._C_e_enu @ (llh_to_ecef(self.planet, L, lam, h) - self._r0_e)
+        return np.array(self.enu(*np.asarray(llh, dtype=float).tolist()))
+
+    def enu(self, L_rad: float, lambda_rad: float, h_m: float) -> tuple[float, float, float]:
+        """:meth:`__call__` on floats."""
+        x, y, z = _llh_to_ecef_xyz(self.planet, L_rad, lambda_rad, h_m)
+        x0, y0, z0 = self._r0_e
+        dx, dy, dz = x - x0, y - y0, z - z0
+        (a, b, c), (d, e, f), (g, h, i) = self._C_e_enu
+        return a * dx + b * dy + c * dz, d * dx + e * dy + f * dz, g * dx + h * dy + i * dz
 
 
 def llh_to_local_enu(planet: Planet, llh: np.ndarray, llh0: np.ndarray) -> np.ndarray:
