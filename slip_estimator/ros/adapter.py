@@ -168,14 +168,19 @@ class SlipEstimatorAdapter:
         self._track_imu_period(stamp_ns)
         self._last_imu_ns = stamp_ns
 
+        # Most IMU samples produce nothing: the output steps run only when due.
         out: list[Output] = []
         try:
-            out += self._slip_outputs(self._core.add_imu(sample))
+            estimates = self._core.add_imu(sample)
+            if estimates:
+                out += self._slip_outputs(estimates)
         except Exception:  # noqa: BLE001 -- a core failure must not take the node down
             self.rejected[TOPIC_IMU, REASON_CORE_ERROR] += 1
-        out += self._odometry_output(stamp_ns)
-        out += self._diagnostics_output(stamp_ns)
-        return self._guard(out)
+        if self._next_odom_ns is None or stamp_ns >= self._next_odom_ns:
+            out += self._odometry_output(stamp_ns)
+        if self._next_diag_ns is None or stamp_ns >= self._next_diag_ns:
+            out += self._diagnostics_output(stamp_ns)
+        return self._guard(out) if out else out
 
     def on_joint_states(self, msg: JointState) -> list[Output]:
         """Process one ``sensor_msgs/JointState`` (wheel angular velocities)."""

@@ -17,7 +17,9 @@ format diagnostic values so that no 'nan'/'inf' text is ever produced (``'unknow
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from operator import attrgetter
 from typing import Any
 
 import numpy as np
@@ -75,6 +77,30 @@ def header_stamp_ns(msg: Any) -> int:
     return stamp_to_ns(msg.header.stamp)
 
 
+# --- fast field access ----------------------------------------------------------------------------
+def _slot(cls: type, name: str) -> str:
+    """The attribute that stores field ``name`` of a generated message class: the slot
+    ``'_' + name`` behind the Python property where there is one (reading it skips the
+    property call), else ``name``."""
+    return '_' + name if '_' + name in getattr(cls, '__slots__', ()) else name
+
+
+def _slot_path(cls: type, path: str) -> str:
+    """:func:`_slot` along a dotted field path (``'header.stamp.sec'``)."""
+    out, obj = [], cls()
+    for name in path.split('.'):
+        slot = _slot(type(obj), name)
+        out.append(slot)
+        obj = getattr(obj, slot)
+    return '.'.join(out)
+
+
+def fields_getter(cls: type, *paths: str) -> Callable[[Any], tuple]:
+    """One ``attrgetter`` for several dotted field paths of message class ``cls`` (reading
+    the slots directly): returns a tuple of the values."""
+    return attrgetter(*(_slot_path(cls, p) for p in paths))
+
+
 # --- inputs ---------------------------------------------------------------------------------------
 def imu_from_msg(msg: Imu, C_imu_b: np.ndarray) -> ImuSample | str:
     """Body-frame IMU sample from a REP-145 ``sensor_msgs/Imu``, or a rejection reason.
@@ -83,13 +109,15 @@ def imu_from_msg(msg: Imu, C_imu_b: np.ndarray) -> ImuSample | str:
     does not matter for rates, and for the specific force it is ignored (rover body rates are
     small; the mounting offset is the core's business if ever needed).
     """
-    stamp_ns = header_stamp_ns(msg)
+    sec, nanosec, ax, ay, az, wx, wy, wz = _IMU_FIELDS(msg)  # this runs at the IMU rate
+    stamp_ns = int(sec) * NS_PER_S + int(nanosec)
     if stamp_ns <= 0:  # zero (never set) or before the epoch: not a usable time
         return REASON_ZERO_STAMP
-    a, w = msg.linear_acceleration, msg.angular_velocity
-    f_ib_imu = (a.x, a.y, a.z)
-    omega_ib_imu = (w.x, w.y, w.z)
-    if not all(math.isfinite(v) for v in f_ib_imu + omega_ib_imu):
+    f_ib_imu = (ax, ay, az)
+    omega_ib_imu = (wx, wy, wz)
+    # A finite sum has finite terms; a non-finite one may be an overflow of finite terms.
+    if (not math.isfinite(sum(f_ib_imu) + sum(omega_ib_imu))
+            and not all(map(math.isfinite, f_ib_imu + omega_ib_imu))):
         return REASON_NON_FINITE
     if (math.hypot(*f_ib_imu) > MAX_SPECIFIC_FORCE_MPS2
             or math.hypot(*omega_ib_imu) > MAX_ANGULAR_RATE_RPS):
@@ -97,6 +125,12 @@ def imu_from_msg(msg: Imu, C_imu_b: np.ndarray) -> ImuSample | str:
     return ImuSample(stamp_ns=stamp_ns,
                      f_ib_b=C_imu_b @ np.array(f_ib_imu),
                      omega_ib_b=C_imu_b @ np.array(omega_ib_imu))
+
+
+_IMU_FIELDS = fields_getter(Imu, 'header.stamp.sec', 'header.stamp.nanosec',
+                            'linear_acceleration.x', 'linear_acceleration.y',
+                            'linear_acceleration.z', 'angular_velocity.x', 'angular_velocity.y',
+                            'angular_velocity.z')
 
 
 def wheel_side(joint_name: str) -> str | None:
@@ -195,12 +229,12 @@ def odometry_to_msg(odo: OdometryEstimate, odom_frame: str, base_frame: str) -> 
     msg.header.frame_id = odom_frame
     msg.child_frame_id = base_frame
     p = msg.pose.pose.position
-    p.x, p.y, p.z = (float(v) for v in odo.p_ob_o)
+    p.x, p.y, p.z = np.asarray(odo.p_ob_o, dtype=float).tolist()
     q = msg.pose.pose.orientation
-    q.w, q.x, q.y, q.z = (float(v) for v in odo.q_ob_wxyz)
+    q.w, q.x, q.y, q.z = np.asarray(odo.q_ob_wxyz, dtype=float).tolist()
     lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
-    lin.x, lin.y, lin.z = (float(v) for v in odo.v_ob_b)
-    ang.x, ang.y, ang.z = (float(v) for v in odo.omega_ob_b)
+    lin.x, lin.y, lin.z = np.asarray(odo.v_ob_b, dtype=float).tolist()
+    ang.x, ang.y, ang.z = np.asarray(odo.omega_ob_b, dtype=float).tolist()
     msg.pose.covariance = np.asarray(odo.pose_covariance, dtype=float).reshape(36)
     msg.twist.covariance = np.asarray(odo.twist_covariance, dtype=float).reshape(36)
     return msg
@@ -286,17 +320,67 @@ def stale_diagnostic_array(message: str, stamp_ns: int, hardware_id: str,
 _INT_TYPES = frozenset({'boolean', 'octet', 'char', 'byte', 'int8', 'uint8', 'int16', 'uint16',
                         'int32', 'uint32', 'int64', 'uint64', 'builtin_interfaces/Time',
                         'builtin_interfaces/Duration'})
-_GUARD_PLANS: dict[type, tuple[str, ...]] = {}
 
 
-def _guard_plan(cls: type) -> tuple[str, ...]:
-    """Names of the fields of ``cls`` that can hold a float or a string (integers, stamps and
-    durations cannot be NaN), cached per message class: the guard runs on every output."""
+@dataclass(frozen=True, slots=True)
+class _GuardPlan:
+    """Where a message class can hold a float or a string (integers, stamps and durations
+    cannot be NaN). Fields of nested messages are flattened into dotted paths, so that one
+    ``attrgetter`` call fetches all scalar floats (or all strings) of the message."""
+
+    floats: Callable[[Any], tuple] | None
+    texts: Callable[[Any], tuple] | None
+    arrays: tuple[Callable[[Any], Any], ...]
+    sequences: tuple[Callable[[Any], Any], ...]
+
+    @property
+    def texts_only(self) -> bool:
+        """Only strings to check (e.g. ``KeyValue``)."""
+        return self.floats is None and not self.arrays and not self.sequences
+
+
+_GUARD_PLANS: dict[type, _GuardPlan] = {}
+
+
+def _getter(paths: list[str]) -> Callable[[Any], tuple] | None:
+    """``attrgetter`` of the dotted paths that always returns a tuple (None for no path)."""
+    if not paths:
+        return None
+    if len(paths) == 1:
+        get = attrgetter(paths[0])
+        return lambda msg: (get(msg),)
+    return attrgetter(*paths)
+
+
+def _collect_fields(cls: type, prefix: str, kinds: dict[str, list[str]]) -> None:
+    sample = cls()  # field kinds are static per class: read them off a default instance
+    for name, kind in cls.get_fields_and_field_types().items():
+        if kind.split('[')[0].removeprefix('sequence<').rstrip('>') in _INT_TYPES:
+            continue
+        slot = _slot(cls, name)
+        value, path = getattr(sample, slot), prefix + slot
+        if isinstance(value, float):
+            kinds['floats'].append(path)
+        elif isinstance(value, str):
+            kinds['texts'].append(path)
+        elif isinstance(value, np.ndarray):
+            kinds['arrays'].append(path)
+        elif isinstance(value, (list, tuple)) or type(value).__name__ == 'array':
+            kinds['sequences'].append(path)
+        elif hasattr(value, 'get_fields_and_field_types'):
+            _collect_fields(type(value), path + '.', kinds)
+
+
+def _guard_plan(cls: type) -> _GuardPlan:
+    """The :class:`_GuardPlan` of ``cls``, made once per message class: the guard runs on
+    every output."""
     plan = _GUARD_PLANS.get(cls)
     if plan is None:
-        plan = tuple(name for name, kind in cls.get_fields_and_field_types().items()
-                     if kind.split('[')[0].removeprefix('sequence<').rstrip('>')
-                     not in _INT_TYPES)
+        kinds: dict[str, list[str]] = {'floats': [], 'texts': [], 'arrays': [], 'sequences': []}
+        _collect_fields(cls, '', kinds)
+        plan = _GuardPlan(_getter(kinds['floats']), _getter(kinds['texts']),
+                          tuple(attrgetter(p) for p in kinds['arrays']),
+                          tuple(attrgetter(p) for p in kinds['sequences']))
         _GUARD_PLANS[cls] = plan
     return plan
 
@@ -307,35 +391,61 @@ def message_is_finite(msg: Any) -> bool:
 
     The last line of defence before publishing: whatever the core returns, no NaN goes out.
     """
-    for field in _guard_plan(type(msg)):
-        value = getattr(msg, field)
-        if isinstance(value, float):
-            if not math.isfinite(value):
+    plan = _GUARD_PLANS.get(type(msg)) or _guard_plan(type(msg))
+    if plan.floats is not None:
+        values = plan.floats(msg)
+        # A finite sum means every term is finite (inf and NaN propagate); a non-finite sum
+        # may also be an overflow of finite terms, so then each term is checked.
+        if not math.isfinite(sum(values)) and not all(map(math.isfinite, values)):
+            return False
+    if plan.texts is not None:
+        for text in plan.texts(msg):
+            if not _text_is_finite(text):
                 return False
-        elif isinstance(value, str):
-            if not _text_is_finite(value):
+    for get in plan.arrays:
+        value = get(msg)
+        if isinstance(value, np.ndarray) and value.dtype.kind == 'f':
+            flat = value.reshape(-1)  # as above: a finite sum of squares, or each element
+            if not math.isfinite(flat.dot(flat)) and not np.isfinite(flat).all():
                 return False
-        elif isinstance(value, np.ndarray):
-            if value.dtype.kind == 'f' and not np.isfinite(value).all():
+        elif not _items_are_finite(value):
+            return False
+    for get in plan.sequences:
+        if not _items_are_finite(get(msg)):
+            return False
+    return True
+
+
+def _items_are_finite(items: Any) -> bool:
+    for item in items:
+        if isinstance(item, float):
+            if not math.isfinite(item):
                 return False
-        elif isinstance(value, (list, tuple)) or type(value).__name__ == 'array':
-            for item in value:
-                if isinstance(item, float):
-                    if not math.isfinite(item):
+        elif isinstance(item, str):
+            if not _text_is_finite(item):
+                return False
+        else:
+            plan = _GUARD_PLANS.get(type(item))
+            if plan is None:
+                if not hasattr(item, 'get_fields_and_field_types'):
+                    continue
+                plan = _guard_plan(type(item))
+            if plan.texts_only:  # diagnostic KeyValues: check the strings here
+                for text in plan.texts(item):
+                    if not _text_is_finite(text):
                         return False
-                elif isinstance(item, str):
-                    if not _text_is_finite(item):
-                        return False
-                elif hasattr(item, 'get_fields_and_field_types') and not message_is_finite(item):
-                    return False
-        elif hasattr(value, 'get_fields_and_field_types'):
-            if not message_is_finite(value):
+            elif not message_is_finite(item):
                 return False
     return True
 
 
 def _text_is_finite(text: str) -> bool:
     if len(text) > 12 or not text:
+        return True
+    # float() parses only what starts (after blanks) with a sign, a point, a digit or the
+    # n/i of nan/inf: skip the parse (and its exception) for names like 'odom'.
+    first = text.lstrip()[:1]
+    if not first or (first not in '+-.nNiI' and not first.isdecimal()):
         return True
     try:
         return math.isfinite(float(text))
