@@ -6,6 +6,7 @@ says what that implies); thresholds are parameters.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -21,23 +22,26 @@ class ImuWindow:
     def __init__(self, n_samples: int) -> None:
         self._buf = np.zeros((max(2, n_samples), 6))  # the newest self._n rows are the window
         self._n = 0
-        self._queue: list[tuple[np.ndarray, np.ndarray]] = []
+        self._queue: list[float] = []  # queued samples, six floats each
         self._var: np.ndarray | None = None
 
-    def add(self, f_ib_b: np.ndarray, omega_ib_b: np.ndarray) -> None:
-        """Append one sample, dropping the oldest when full."""
-        self._queue.append((f_ib_b, omega_ib_b))
+    def add(self, f_ib_b: Sequence[float], omega_ib_b: Sequence[float]) -> None:
+        """Append one sample, dropping the oldest when full (lists of floats are the cheapest
+        input; arrays work too)."""
+        queue = self._queue
+        queue.extend(f_ib_b)
+        queue.extend(omega_ib_b)
         self._var = None
-        if len(self._queue) >= len(self._buf):
+        if len(queue) >= 6 * len(self._buf):
             self._flush()
 
     def _flush(self) -> None:
         queue = self._queue
         if not queue:
             return
-        buf, size, k = self._buf, len(self._buf), len(queue)
+        buf, size, k = self._buf, len(self._buf), len(queue) // 6
         if k >= size:
-            buf[:] = np.array(queue[-size:], dtype=float).reshape(size, 6)
+            buf[:] = np.array(queue[-6 * size:], dtype=float).reshape(size, 6)
         else:
             buf[:-k] = buf[k:]
             buf[-k:] = np.array(queue, dtype=float).reshape(k, 6)
@@ -53,7 +57,7 @@ class ImuWindow:
     @property
     def n(self) -> int:
         """Number of samples held."""
-        return min(self._n + len(self._queue), len(self._buf))
+        return min(self._n + len(self._queue) // 6, len(self._buf))
 
     @property
     def full(self) -> bool:
@@ -102,7 +106,7 @@ class StationaryDetector:
         self._wheel_stamp_ns: int | None = None
         self._wheels_stopped = False
 
-    def add_imu(self, f_ib_b: np.ndarray, omega_ib_b: np.ndarray) -> None:
+    def add_imu(self, f_ib_b: Sequence[float], omega_ib_b: Sequence[float]) -> None:
         """Feed one IMU sample."""
         self.window.add(f_ib_b, omega_ib_b)
 

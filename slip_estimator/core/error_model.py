@@ -147,25 +147,25 @@ def process_noise(state: NavState, F: np.ndarray, tau_s: float, S_rg: float, S_r
     t2, t3, t4, t5 = t * t, t ** 3, t ** 4, t ** 5
     C = state.C_b_n
     F21 = F[VEL, ATT]
-    Td = curvilinear_to_ned_diag(planet, state.llh[0], state.llh[2])
+    T0, T1, T2 = Td = curvilinear_to_ned_diag(planet, state.llh[0], state.llh[2]).tolist()
     FFt = F21 @ F21.T
     F21C = F21 @ C
-    one = np.ones(3)
     a_rg3 = S_rg * t3 / 3.0 + S_bgd * t5 / 5.0
-    # Q21, Q31, Q32, Q34, Q35, Q15, Q24, Q25, Q22, Q33 (see _Q_BLOCKS).
-    coef = np.array([S_rg * t2 / 2.0 + S_bgd * t4 / 4.0, a_rg3,
-                     S_rg * t4 / 4.0 + S_bgd * t ** 6 / 6.0, S_bad * t3 / 3.0, S_bgd * t4 / 4.0,
-                     S_bgd * t2 / 2.0, S_bad * t2 / 2.0, S_bgd * t3 / 3.0, a_rg3,
-                     S_rg * t5 / 5.0 + S_bgd * t ** 7 / 7.0])
-    rows = np.array([one, Td, Td, Td, Td, one, one, one, one, Td])
-    blocks = (coef[:, None] * rows)[:, :, None] * np.array(
-        [F21, F21, FFt, C, F21C, C, C, F21C, FFt, FFt])
+    # Q21, Q31, Q32, Q34, Q35, Q15, Q24, Q25, Q22, Q33 (see _Q_BLOCKS): coefficient times
+    # the row scale (T's diagonal or one), as floats.
+    coef_T = (a_rg3, S_rg * t4 / 4.0 + S_bgd * t ** 6 / 6.0, S_bad * t3 / 3.0,
+              S_bgd * t4 / 4.0)
+    coef_1 = (S_bgd * t2 / 2.0, S_bad * t2 / 2.0, S_bgd * t3 / 3.0, a_rg3)
+    a_rg2 = S_rg * t2 / 2.0 + S_bgd * t4 / 4.0
+    c_33 = S_rg * t5 / 5.0 + S_bgd * t ** 7 / 7.0
+    scale = np.array([(a_rg2, a_rg2, a_rg2)] + [(c * T0, c * T1, c * T2) for c in coef_T]
+                     + [(c, c, c) for c in coef_1] + [(c_33 * T0, c_33 * T1, c_33 * T2)])
+    blocks = scale[:, :, None] * np.array([F21, F21, FFt, C, F21C, C, C, F21C, FFt, FFt])
     blocks[9] *= Td
     values = blocks.ravel()
     Q = np.zeros(N_ERR * N_ERR)
     Q[_Q_FLAT] = values
     Q[_Q_MIRROR] = values[:72]
-    T0, T1, T2 = Td.tolist()
     a_att, a_vel = S_rg * t + S_bgd * t3 / 3.0, S_ra * t + S_bad * t3 / 3.0
     a_pos, a_32 = S_ra * t3 / 3.0 + S_bad * t5 / 5.0, S_ra * t2 / 2.0 + S_bad * t4 / 4.0
     a_ba, a_bg = S_bad * t, S_bgd * t

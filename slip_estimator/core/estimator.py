@@ -177,7 +177,7 @@ class SlipEstimator:
         self.counters['imu_samples'] += 1
         prev_ns, self.stamp_ns = self.stamp_ns, sample.stamp_ns
         self._omega_ib_b = w_b
-        self.stationary.add_imu(f_b, w_b)
+        self.stationary.add_imu(f_l, w_l)
         if prev_ns is None:
             return self._slip_before_alignment()
         dt = (sample.stamp_ns - prev_ns) * 1e-9
@@ -286,20 +286,23 @@ class SlipEstimator:
         """Covariance must stay finite, symmetric and positive definite; the state must stay
         within physical bounds. Repair what can be repaired, otherwise re-initialise."""
         p = self.params
-        if not (np.isfinite(self.P).all() and np.isfinite(self.state.v_eb_n).all()
-                and np.isfinite(self.state.C_b_n).all() and np.isfinite(self.state.llh).all()):
+        st = self.state
+        # A finite sum has finite terms; only a non-finite sum (NaN/Inf, or an overflow of
+        # finite terms) needs the element-wise check.
+        if not (math.isfinite(float(self.P.sum()) + sum(st.v_eb_n.tolist())
+                              + sum(st.C_b_n.ravel().tolist()) + sum(st.llh.tolist()))
+                or (np.isfinite(self.P).all() and np.isfinite(st.v_eb_n).all()
+                    and np.isfinite(st.C_b_n).all() and np.isfinite(st.llh).all())):
             self.counters['resets'] += 1
             self._event('non-finite filter state: full reset, re-aligning')
             self._reset_filter()
             return
-        d = np.diag(self.P)
-        if d.min() <= 0.0:
+        if self.P.diagonal().min() <= 0.0:
             w, V = np.linalg.eigh(kalman.symmetrize(self.P))
             self.P = kalman.symmetrize((V * np.maximum(w, 1e-18)) @ V.T)
             self.counters['covariance_repairs'] += 1
             self._event('covariance lost positive definiteness: repaired')
-        st = self.state
-        speed = float(np.linalg.norm(st.v_eb_n))
+        speed = math.sqrt(st.v_eb_n.dot(st.v_eb_n))  # np.linalg.norm of a vector
         bias_out = (np.abs(st.b_a).max() > 10.0 * p.initial_accel_bias_std
                     or np.abs(st.b_g).max() > 10.0 * p.initial_gyro_bias_std)
         if speed > 2.0 * p.max_wheel_speed_mps or bias_out:
