@@ -25,9 +25,19 @@ from typing import Any
 import numpy as np
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Vector3Stamped
+from geometry_msgs.msg import (
+    Point,
+    Pose,
+    PoseWithCovariance,
+    Quaternion,
+    Twist,
+    TwistWithCovariance,
+    Vector3,
+    Vector3Stamped,
+)
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Header
 
 from slip_estimator.core.types import (
     MAX_ANGULAR_RATE_RPS,
@@ -224,6 +234,14 @@ def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
 
 def odometry_to_msg(odo: OdometryEstimate, odom_frame: str, base_frame: str) -> Odometry:
     """``nav_msgs/Odometry`` of the fused solution (pose in odom, twist in base_link)."""
+    if _FAST_ODOMETRY:
+        return _odometry_to_msg_fast(odo, odom_frame, base_frame)
+    return _odometry_to_msg_reference(odo, odom_frame, base_frame)
+
+
+def _odometry_to_msg_reference(odo: OdometryEstimate, odom_frame: str,
+                               base_frame: str) -> Odometry:
+    """:func:`odometry_to_msg` through the generated constructors and field setters."""
     msg = Odometry()
     msg.header.stamp = ns_to_stamp(odo.stamp_ns)
     msg.header.frame_id = odom_frame
@@ -238,6 +256,68 @@ def odometry_to_msg(odo: OdometryEstimate, odom_frame: str, base_frame: str) -> 
     msg.pose.covariance = np.asarray(odo.pose_covariance, dtype=float).reshape(36)
     msg.twist.covariance = np.asarray(odo.twist_covariance, dtype=float).reshape(36)
     return msg
+
+
+def _message(cls: type, *values: Any) -> Any:
+    """A message of ``cls`` with its fields (in declaration order, then the constructor's
+    ``_check_fields`` flag where the class has one) set to ``values``, written straight into
+    the slots: the generated constructor builds (and then discards) a default of every nested
+    message, which costs more than the whole odometry computation."""
+    slots = _MESSAGE_SLOTS.get(cls)
+    if slots is None:
+        slots = _MESSAGE_SLOTS[cls] = _message_slots(cls)
+    msg = cls.__new__(cls)
+    for slot, value in zip(slots, values):
+        setattr(msg, slot, value)
+    return msg
+
+
+_MESSAGE_SLOTS: dict[type, tuple[str, ...]] = {}
+
+
+def _message_slots(cls: type) -> tuple[str, ...]:
+    slots = tuple(_slot(cls, name) for name in cls.get_fields_and_field_types())
+    if any(not slot.startswith('_') for slot in slots):
+        raise TypeError(f'{cls.__name__}: fields not stored in slots')
+    # Jazzy's constructor also records whether setters check types (ROS_PYTHON_CHECK_FIELDS).
+    return slots + ('_check_fields',) if '_check_fields' in cls.__slots__ else slots
+
+
+def _odometry_to_msg_fast(odo: OdometryEstimate, odom_frame: str, base_frame: str) -> Odometry:
+    sec, nanosec = divmod(int(odo.stamp_ns), NS_PER_S)
+    x, y, z = np.asarray(odo.p_ob_o, dtype=float).tolist()
+    qw, qx, qy, qz = np.asarray(odo.q_ob_wxyz, dtype=float).tolist()
+    vx, vy, vz = np.asarray(odo.v_ob_b, dtype=float).tolist()
+    wx, wy, wz = np.asarray(odo.omega_ob_b, dtype=float).tolist()
+    check = _ODOMETRY_CHECK_FIELDS
+    return _message(
+        Odometry,
+        _message(Header, _message(Time, sec, nanosec, check), odom_frame, check),
+        base_frame,
+        _message(PoseWithCovariance,
+                 _message(Pose, _message(Point, x, y, z, check),
+                          _message(Quaternion, qx, qy, qz, qw, check), check),
+                 np.asarray(odo.pose_covariance, dtype=float).reshape(36), check),
+        _message(TwistWithCovariance,
+                 _message(Twist, _message(Vector3, vx, vy, vz, check),
+                          _message(Vector3, wx, wy, wz, check), check),
+                 np.asarray(odo.twist_covariance, dtype=float).reshape(36), check),
+        check)
+
+
+def _fast_odometry_works() -> bool:
+    """The slot-filling builder gives the same message as the constructors (checked once:
+    a different message layout falls back to the constructors)."""
+    try:
+        odo = OdometryEstimate(1_234_567_890_123, np.array([1.0, -2.0, 3.0]),
+                               np.array([0.5, 0.5, -0.5, 0.5]), np.array([0.1, 0.2, 0.3]),
+                               np.array([-0.01, 0.02, -0.03]), np.arange(36.0).reshape(6, 6),
+                               -np.arange(36.0).reshape(6, 6))
+        fast = _odometry_to_msg_fast(odo, 'odom', 'base_link')
+        reference = _odometry_to_msg_reference(odo, 'odom', 'base_link')
+        return fast == reference and repr(fast) == repr(reference)
+    except Exception:  # noqa: BLE001 -- any surprise: use the constructors
+        return False
 
 
 def slip_level(slip_class: int) -> bytes:
@@ -451,3 +531,7 @@ def _text_is_finite(text: str) -> bool:
         return math.isfinite(float(text))
     except ValueError:
         return True
+
+
+_ODOMETRY_CHECK_FIELDS = getattr(Odometry(), '_check_fields', False)
+_FAST_ODOMETRY = _fast_odometry_works()
