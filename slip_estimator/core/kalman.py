@@ -50,6 +50,18 @@ class UpdateRecord:
     accepted: bool
 
 
+_IDENTITY: dict[int, np.ndarray] = {}
+
+
+def _identity(n: int) -> np.ndarray:
+    """A read-only ``np.eye(n)``, made once per size."""
+    eye = _IDENTITY.get(n)
+    if eye is None:
+        eye = _IDENTITY[n] = np.eye(n)
+        eye.flags.writeable = False
+    return eye
+
+
 def symmetrize(P: np.ndarray) -> np.ndarray:
     """``(P + P^T) / 2``."""
     return 0.5 * (P + P.T)
@@ -76,6 +88,6 @@ def update(P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
         return np.zeros(P.shape[0]), P, UpdateRecord(name, innovation, S, nis, False)
     K = np.linalg.solve(S, PHt.T).T
     dx = K @ innovation
-    IKH = np.eye(P.shape[0]) - K @ H
+    IKH = _identity(P.shape[0]) - K @ H
     P_new = symmetrize(IKH @ P @ IKH.T + K @ R @ K.T)
     return dx, P_new, UpdateRecord(name, innovation, S, nis, True)

@@ -480,7 +480,7 @@ def message_is_finite(msg: Any) -> bool:
             return False
     if plan.texts is not None:
         for text in plan.texts(msg):
-            if not _text_is_finite(text):
+            if not text_is_finite(text):
                 return False
     for get in plan.arrays:
         value = get(msg)
@@ -502,7 +502,7 @@ def _items_are_finite(items: Any) -> bool:
             if not math.isfinite(item):
                 return False
         elif isinstance(item, str):
-            if not _text_is_finite(item):
+            if not text_is_finite(item):
                 return False
         else:
             plan = _GUARD_PLANS.get(type(item))
@@ -512,14 +512,15 @@ def _items_are_finite(items: Any) -> bool:
                 plan = _guard_plan(type(item))
             if plan.texts_only:  # diagnostic KeyValues: check the strings here
                 for text in plan.texts(item):
-                    if not _text_is_finite(text):
+                    if not text_is_finite(text):
                         return False
             elif not message_is_finite(item):
                 return False
     return True
 
 
-def _text_is_finite(text: str) -> bool:
+def text_is_finite(text: str) -> bool:
+    """False when ``text`` parses as a non-finite number ('nan', '-inf', '1e999', ...)."""
     if len(text) > 12 or not text:
         return True
     # float() parses only what starts (after blanks) with a sign, a point, a digit or the
