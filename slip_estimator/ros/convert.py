@@ -485,8 +485,10 @@ def message_is_finite(msg: Any) -> bool:
     for get in plan.arrays:
         value = get(msg)
         if isinstance(value, np.ndarray) and value.dtype.kind == 'f':
-            flat = value.reshape(-1)  # as above: a finite sum of squares, or each element
-            if not math.isfinite(flat.dot(flat)) and not np.isfinite(flat).all():
+            # As above: a finite sum (of Python floats, which overflow without a warning)
+            # means finite elements; otherwise each element is checked.
+            flat = value.reshape(-1)
+            if not math.isfinite(sum(flat.tolist())) and not np.isfinite(flat).all():
                 return False
         elif not _items_are_finite(value):
             return False
