@@ -94,6 +94,7 @@ class SlipEstimator:
         self.l_bw_b = -r_imu_b
         self._l_bw_b = tuple(self.l_bw_b.tolist())
         self._wheel_latency_ns = int(p.wheel_latency_s * _NS)
+        self._wheel_timeout_ns = int(p.wheel_timeout_s * _NS)
         self.zupt = ZeroVelocity()
         self.zaru = ZeroAngularRate(self.planet)
         self.nhc = NonHolonomic(self.planet, self.l_bw_b)
@@ -652,9 +653,8 @@ class SlipEstimator:
 
     def _stale_check(self) -> list[SlipEstimate]:
         """Wheel dropout: report "unknown" once per timeout instead of guessing."""
-        timeout = int(self.params.wheel_timeout_s * _NS)
         last = self._last_stale_ns if self._last_stale_ns is not None else self._last_wheel_ns
-        if last is None or self.stamp_ns - last <= timeout:
+        if last is None or self.stamp_ns - last <= self._wheel_timeout_ns:
             return []
         self._last_stale_ns = self.stamp_ns
         self._event(f'wheel data missing for {(self.stamp_ns - self._last_wheel_ns) * 1e-9:.1f} s:'
@@ -704,7 +704,7 @@ class SlipEstimator:
         # permutation: indexing and scaling. Twist: velocity (NED -> base_link) and gyro bias
         # (b -> base_link), M = diag(C_FLU_FRD C_n_b, C_FLU_FRD), plus the gyro noise.
         s = np.array((1.0 / T_lam, 1.0 / T_L, 1.0, 1.0, 1.0, -1.0))
-        pose_cov = (s[:, None] * self.P[_POSE_IX]) * s
+        pose_cov = (s[:, None] * s) * self.P[_POSE_IX]  # symmetric as P is: s_a s_b = s_b s_a
         M = np.zeros((6, 6))
         M[:3, :3] = (C[0:9:3], [-c for c in C[1:9:3]], [-c for c in C[2:9:3]])
         M[[3, 4, 5], [3, 4, 5]] = _FLU_FRD_SIGN
@@ -712,7 +712,7 @@ class SlipEstimator:
         twist_cov[[3, 4, 5], [3, 4, 5]] += self.params.gyro_noise_density ** 2 / self._nominal_dt
         return OdometryEstimate(self.stamp_ns, np.array(p_o), np.array(q),
                                 np.array((vx, -vy, -vz)), np.array((wx, -wy, -wz)),
-                                kalman.symmetrize(pose_cov), kalman.symmetrize(twist_cov))
+                                pose_cov, kalman.symmetrize(twist_cov))
 
     def health(self) -> Health:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""
