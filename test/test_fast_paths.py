@@ -525,3 +525,19 @@ def test_adapter_checks_slip_messages_when_the_frame_reads_as_nan():
                                                                      0.01, 0.55)]))
         assert adapter.dropped_non_finite[TOPIC_SLIP] == dropped
         assert len(out) == 2 - 2 * dropped
+
+
+# --- Kalman solve ------------------------------------------------------------------------------
+def test_kalman_solve_equals_numpy_and_raises_where_it_does():
+    rng = np.random.default_rng(13)
+    for m in (1, 2, 3):
+        for _ in range(200):
+            A = rng.normal(size=(m, m))
+            S = A @ A.T + rng.uniform(1e-6, 1.0) * np.eye(m)
+            b, B = rng.normal(size=m), rng.normal(size=(m, N_ERR))
+            assert np.array_equal(kalman.solve(S, b), np.linalg.solve(S, b))
+            assert np.array_equal(kalman.solve(S, B), np.linalg.solve(S, B))
+    with pytest.raises(np.linalg.LinAlgError), np.errstate(invalid='ignore'):
+        kalman.solve(np.zeros((2, 2)), np.ones(2))
+    nan = kalman.solve(np.full((1, 1), np.nan), np.ones(1))
+    assert np.isnan(nan).all()
