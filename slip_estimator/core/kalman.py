@@ -75,7 +75,8 @@ def solve(S: np.ndarray, b: np.ndarray) -> np.ndarray:
     The same LAPACK gufunc, called without np.linalg.solve's per-call argument checks and
     error-state context, which cost several times the solve of these small systems. Any
     non-finite result (singular or non-finite S) is redone by np.linalg.solve, so it raises
-    LinAlgError exactly where np.linalg.solve would.
+    LinAlgError exactly where np.linalg.solve would (a singular S, impossible with R > 0,
+    also shows numpy's "invalid value" RuntimeWarning first).
     """
     if _lapack is not None:
         x = (_lapack.solve1 if b.ndim == 1 else _lapack.solve)(S, b)
