@@ -471,23 +471,34 @@ def test_text_is_finite_agrees_with_float():
         assert text_is_finite(text) == expect, text
 
 
-def test_fast_odometry_message_equals_the_constructed_one():
+def test_slot_built_messages_equal_the_constructed_ones(monkeypatch):
+    """convert.build writes message slots directly; every output converter gives the same
+    message (equal, same repr, same bytes) as through the generated constructors."""
     from rclpy.serialization import serialize_message
 
     from slip_estimator.ros import convert
 
-    assert convert._FAST_ODOMETRY  # the slot builder is in use on this ROS distribution
-    odo = _sample_messages()['odometry']
-    fast = odo()
-    from slip_estimator.core.types import OdometryEstimate
-    est = OdometryEstimate(-1_500_000_000, np.array([1.0, 2.0, 3.0]), np.array([1.0, 0, 0, 0]),
-                           np.zeros(3), np.ones(3), np.eye(6), np.eye(6))
-    for rec in (est,):
-        a = convert._odometry_to_msg_fast(rec, 'o', 'b')
-        b = convert._odometry_to_msg_reference(rec, 'o', 'b')
-        assert a == b and serialize_message(a) == serialize_message(b)
-        assert (a.header.stamp.sec, a.header.stamp.nanosec) == (-2, 500_000_000)
-    assert fast.pose.pose.orientation.w == 0.5 and fast.child_frame_id == 'base_link'
+    assert convert._FAST_BUILD  # the slot builder is in use on this ROS distribution
+    stamps = (1_234_567_890_123, -1_500_000_000, 0)
+
+    def outputs():
+        out = []
+        for stamp in stamps:
+            out += [make() for make in _sample_messages().values()]
+            out.append(convert.stale_diagnostic_array('no IMU data', stamp, 'base_link',
+                                                      {'x': 1.0, 'y': 'text'}))
+            out.append(convert.ns_to_stamp(stamp))
+        return out
+
+    fast = outputs()
+    monkeypatch.setattr(convert, '_FAST_BUILD', False)
+    reference = outputs()
+    assert len(fast) == len(reference)
+    for a, b in zip(fast, reference):
+        assert a == b and repr(a) == repr(b)
+        assert serialize_message(a) == serialize_message(b)
+    assert (fast[-1].sec, fast[-1].nanosec) == (0, 0)
+    assert (fast[-7].sec, fast[-7].nanosec) == (-2, 500_000_000)
 
 
 @pytest.mark.parametrize('field', ['slip_ratio', 'slip_ratio_std', 'body_speed_mps',

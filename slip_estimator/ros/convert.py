@@ -79,7 +79,7 @@ def ns_to_stamp(stamp_ns: int) -> Time:
     """``builtin_interfaces/Time`` of integer nanoseconds (floor division, so negative times
     keep ``0 <= nanosec < 1e9`` as the message requires)."""
     sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
-    return Time(sec=sec, nanosec=nanosec)
+    return build(Time, sec, nanosec)
 
 
 def header_stamp_ns(msg: Any) -> int:
@@ -229,95 +229,65 @@ def format_value(value: Any) -> str:
 
 def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
     """KeyValues of a mapping, values formatted with :func:`format_value`."""
-    return [KeyValue(key=str(k), value=format_value(v)) for k, v in values.items()]
+    return [build(KeyValue, str(k), format_value(v)) for k, v in values.items()]
+
+
+# --- message building -------------------------------------------------------------------------
+def build(cls: type, *values: Any) -> Any:
+    """A message of ``cls`` with its fields, in declaration order, set to ``values``.
+
+    The generated constructor builds (and then discards) a default of every nested message
+    and checks each keyword, which costs more than the whole odometry computation; ``build``
+    writes the slots directly. At import it is checked once (:func:`_fast_build_works`) that
+    both ways give equal messages, else the constructors are used.
+    """
+    if not _FAST_BUILD:
+        return cls(**dict(zip(cls.get_fields_and_field_types(), values)))
+    slots = _BUILD_SLOTS.get(cls)
+    if slots is None:
+        slots = _BUILD_SLOTS[cls] = _build_slots(cls)
+    msg = cls.__new__(cls)
+    for slot, value in zip(slots, values):
+        setattr(msg, slot, value)
+    if len(slots) > len(values):  # Jazzy: the constructor's ROS_PYTHON_CHECK_FIELDS flag
+        msg._check_fields = _CHECK_FIELDS
+    return msg
+
+
+_BUILD_SLOTS: dict[type, tuple[str, ...]] = {}
+
+
+def _build_slots(cls: type) -> tuple[str, ...]:
+    slots = tuple(_slot(cls, name) for name in cls.get_fields_and_field_types())
+    if any(not slot.startswith('_') for slot in slots):
+        raise TypeError(f'{cls.__name__}: fields not stored in slots')
+    return slots + ('_check_fields',) if '_check_fields' in cls.__slots__ else slots
+
+
+def _stamped_header(stamp_ns: int, frame_id: str = '') -> Header:
+    return build(Header, ns_to_stamp(stamp_ns), frame_id)
 
 
 def odometry_to_msg(odo: OdometryEstimate, odom_frame: str, base_frame: str) -> Odometry:
     """``nav_msgs/Odometry`` of the fused solution (pose in odom, twist in base_link)."""
-    if _FAST_ODOMETRY:
-        return _odometry_to_msg_fast(odo, odom_frame, base_frame)
-    return _odometry_to_msg_reference(odo, odom_frame, base_frame)
-
-
-def _odometry_to_msg_reference(odo: OdometryEstimate, odom_frame: str,
-                               base_frame: str) -> Odometry:
-    """:func:`odometry_to_msg` through the generated constructors and field setters."""
-    msg = Odometry()
-    msg.header.stamp = ns_to_stamp(odo.stamp_ns)
-    msg.header.frame_id = odom_frame
-    msg.child_frame_id = base_frame
-    p = msg.pose.pose.position
-    p.x, p.y, p.z = np.asarray(odo.p_ob_o, dtype=float).tolist()
-    q = msg.pose.pose.orientation
-    q.w, q.x, q.y, q.z = np.asarray(odo.q_ob_wxyz, dtype=float).tolist()
-    lin, ang = msg.twist.twist.linear, msg.twist.twist.angular
-    lin.x, lin.y, lin.z = np.asarray(odo.v_ob_b, dtype=float).tolist()
-    ang.x, ang.y, ang.z = np.asarray(odo.omega_ob_b, dtype=float).tolist()
-    msg.pose.covariance = np.asarray(odo.pose_covariance, dtype=float).reshape(36)
-    msg.twist.covariance = np.asarray(odo.twist_covariance, dtype=float).reshape(36)
-    return msg
-
-
-def _message(cls: type, *values: Any) -> Any:
-    """A message of ``cls`` with its fields (in declaration order, then the constructor's
-    ``_check_fields`` flag where the class has one) set to ``values``, written straight into
-    the slots: the generated constructor builds (and then discards) a default of every nested
-    message, which costs more than the whole odometry computation."""
-    slots = _MESSAGE_SLOTS.get(cls)
-    if slots is None:
-        slots = _MESSAGE_SLOTS[cls] = _message_slots(cls)
-    msg = cls.__new__(cls)
-    for slot, value in zip(slots, values):
-        setattr(msg, slot, value)
-    return msg
-
-
-_MESSAGE_SLOTS: dict[type, tuple[str, ...]] = {}
-
-
-def _message_slots(cls: type) -> tuple[str, ...]:
-    slots = tuple(_slot(cls, name) for name in cls.get_fields_and_field_types())
-    if any(not slot.startswith('_') for slot in slots):
-        raise TypeError(f'{cls.__name__}: fields not stored in slots')
-    # Jazzy's constructor also records whether setters check types (ROS_PYTHON_CHECK_FIELDS).
-    return slots + ('_check_fields',) if '_check_fields' in cls.__slots__ else slots
-
-
-def _odometry_to_msg_fast(odo: OdometryEstimate, odom_frame: str, base_frame: str) -> Odometry:
-    sec, nanosec = divmod(int(odo.stamp_ns), NS_PER_S)
     x, y, z = np.asarray(odo.p_ob_o, dtype=float).tolist()
     qw, qx, qy, qz = np.asarray(odo.q_ob_wxyz, dtype=float).tolist()
     vx, vy, vz = np.asarray(odo.v_ob_b, dtype=float).tolist()
     wx, wy, wz = np.asarray(odo.omega_ob_b, dtype=float).tolist()
-    check = _ODOMETRY_CHECK_FIELDS
-    return _message(
-        Odometry,
-        _message(Header, _message(Time, sec, nanosec, check), odom_frame, check),
-        base_frame,
-        _message(PoseWithCovariance,
-                 _message(Pose, _message(Point, x, y, z, check),
-                          _message(Quaternion, qx, qy, qz, qw, check), check),
-                 np.asarray(odo.pose_covariance, dtype=float).reshape(36), check),
-        _message(TwistWithCovariance,
-                 _message(Twist, _message(Vector3, vx, vy, vz, check),
-                          _message(Vector3, wx, wy, wz, check), check),
-                 np.asarray(odo.twist_covariance, dtype=float).reshape(36), check),
-        check)
+    pose = build(Pose, build(Point, x, y, z), build(Quaternion, qx, qy, qz, qw))
+    twist = build(Twist, build(Vector3, vx, vy, vz), build(Vector3, wx, wy, wz))
+    return build(Odometry, _stamped_header(odo.stamp_ns, odom_frame), base_frame,
+                 build(PoseWithCovariance, pose,
+                       np.asarray(odo.pose_covariance, dtype=float).reshape(36)),
+                 build(TwistWithCovariance, twist,
+                       np.asarray(odo.twist_covariance, dtype=float).reshape(36)))
 
 
-def _fast_odometry_works() -> bool:
-    """The slot-filling builder gives the same message as the constructors (checked once:
-    a different message layout falls back to the constructors)."""
-    try:
-        odo = OdometryEstimate(1_234_567_890_123, np.array([1.0, -2.0, 3.0]),
-                               np.array([0.5, 0.5, -0.5, 0.5]), np.array([0.1, 0.2, 0.3]),
-                               np.array([-0.01, 0.02, -0.03]), np.arange(36.0).reshape(6, 6),
-                               -np.arange(36.0).reshape(6, 6))
-        fast = _odometry_to_msg_fast(odo, 'odom', 'base_link')
-        reference = _odometry_to_msg_reference(odo, 'odom', 'base_link')
-        return fast == reference and repr(fast) == repr(reference)
-    except Exception:  # noqa: BLE001 -- any surprise: use the constructors
-        return False
+def _diagnostic_array(stamp_ns: int, level: bytes, name: str, message: str, hardware_id: str,
+                      values: Mapping[str, Any]) -> DiagnosticArray:
+    """A one-status ``DiagnosticArray``, values formatted with :func:`format_value`."""
+    status = build(DiagnosticStatus, level, name, message, hardware_id, key_values(values))
+    return build(DiagnosticArray, _stamped_header(stamp_ns), [status])
 
 
 def slip_level(slip_class: int) -> bytes:
@@ -340,12 +310,8 @@ def slip_to_diagnostic_array(est: SlipEstimate, hardware_id: str) -> DiagnosticA
         values['slip_ratio_left'] = est.slip_ratio_left
     if est.slip_ratio_right is not None:
         values['slip_ratio_right'] = est.slip_ratio_right
-    status = DiagnosticStatus(level=slip_level(est.slip_class), name=SLIP_STATUS_NAME,
-                              message=est.class_name, hardware_id=hardware_id,
-                              values=key_values(values))
-    msg = DiagnosticArray(status=[status])
-    msg.header.stamp = ns_to_stamp(est.stamp_ns)
-    return msg
+    return _diagnostic_array(est.stamp_ns, slip_level(est.slip_class), SLIP_STATUS_NAME,
+                             est.class_name, hardware_id, values)
 
 
 def slip_is_known(est: SlipEstimate) -> bool:
@@ -361,13 +327,9 @@ def slip_to_vector3(est: SlipEstimate, frame_id: str) -> Vector3Stamped | None:
     """
     if not slip_is_known(est):
         return None
-    msg = Vector3Stamped()
-    msg.header.stamp = ns_to_stamp(est.stamp_ns)
-    msg.header.frame_id = frame_id
-    msg.vector.x = float(est.slip_ratio)
-    msg.vector.y = float(est.slip_ratio_std)
-    msg.vector.z = float(est.slip_class)
-    return msg
+    return build(Vector3Stamped, _stamped_header(est.stamp_ns, frame_id),
+                 build(Vector3, float(est.slip_ratio), float(est.slip_ratio_std),
+                       float(est.slip_class)))
 
 
 def health_to_diagnostic_array(health: Health, stamp_ns: int, hardware_id: str,
@@ -378,22 +340,15 @@ def health_to_diagnostic_array(health: Health, stamp_ns: int, hardware_id: str,
     if extra_values:
         values.update(extra_values)
     level = max(DiagnosticStatus.OK[0], min(int(health.level), DiagnosticStatus.STALE[0]))
-    status = DiagnosticStatus(level=bytes([level]), name=name, message=health.message,
-                              hardware_id=hardware_id, values=key_values(values))
-    msg = DiagnosticArray(status=[status])
-    msg.header.stamp = ns_to_stamp(stamp_ns)
-    return msg
+    return _diagnostic_array(stamp_ns, bytes([level]), name, health.message, hardware_id,
+                             values)
 
 
 def stale_diagnostic_array(message: str, stamp_ns: int, hardware_id: str,
                            values: Mapping[str, Any] | None = None) -> DiagnosticArray:
     """A STALE ``/diagnostics`` status (live node: no IMU data)."""
-    status = DiagnosticStatus(level=DiagnosticStatus.STALE, name=HEALTH_STATUS_NAME,
-                              message=message, hardware_id=hardware_id,
-                              values=key_values(values or {}))
-    msg = DiagnosticArray(status=[status])
-    msg.header.stamp = ns_to_stamp(stamp_ns)
-    return msg
+    return _diagnostic_array(stamp_ns, DiagnosticStatus.STALE, HEALTH_STATUS_NAME, message,
+                             hardware_id, values or {})
 
 
 # --- output guard ---------------------------------------------------------------------------------
@@ -536,5 +491,32 @@ def text_is_finite(text: str) -> bool:
         return True
 
 
-_ODOMETRY_CHECK_FIELDS = getattr(Odometry(), '_check_fields', False)
-_FAST_ODOMETRY = _fast_odometry_works()
+def _fast_build_works() -> bool:
+    """Every output converter gives the same message (==, repr) through the slots as through
+    the constructors."""
+    global _FAST_BUILD
+    odo = OdometryEstimate(1_234_567_890_123, np.array([1.0, -2.0, 3.0]),
+                           np.array([0.5, 0.5, -0.5, 0.5]), np.array([0.1, 0.2, 0.3]),
+                           np.array([-0.01, 0.02, -0.03]), np.arange(36.0).reshape(6, 6),
+                           -np.arange(36.0).reshape(6, 6))
+    slip = SlipEstimate(-1_500_000_000, 0.25, 0.01, 2, 0.4, 0.01, 0.55, 0.2, 0.3)
+    health = Health(1, 'running', {'a': 1.5, 'b': [0.1, 0.2], 'c': None})
+
+    def outputs() -> list[Any]:
+        return [odometry_to_msg(odo, 'odom', 'base_link'),
+                slip_to_diagnostic_array(slip, 'base_link'), slip_to_vector3(slip, 'base_link'),
+                health_to_diagnostic_array(health, 7, 'base_link', {'n': 3}),
+                stale_diagnostic_array('no IMU data', 8, 'base_link')]
+
+    try:
+        _FAST_BUILD = False
+        reference = outputs()
+        _FAST_BUILD = True
+        return all(a == b and repr(a) == repr(b) for a, b in zip(outputs(), reference))
+    except Exception:  # noqa: BLE001 -- any surprise: use the constructors
+        return False
+
+
+_CHECK_FIELDS = getattr(Time(), '_check_fields', False)
+_FAST_BUILD = False
+_FAST_BUILD = _fast_build_works()
