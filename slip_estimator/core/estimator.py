@@ -95,6 +95,7 @@ class SlipEstimator:
         self._l_bw_b = tuple(self.l_bw_b.tolist())
         self._wheel_latency_ns = int(p.wheel_latency_s * _NS)
         self._wheel_timeout_ns = int(p.wheel_timeout_s * _NS)
+        self._ranges_known = p.accel_range_mps2 > 0.0 or p.gyro_range_rps > 0.0
         self.zupt = ZeroVelocity()
         self.zaru = ZeroAngularRate(self.planet)
         self.nhc = NonHolonomic(self.planet, self.l_bw_b)
@@ -182,7 +183,8 @@ class SlipEstimator:
         if prev_ns is None:
             return self._slip_before_alignment()
         dt = (sample.stamp_ns - prev_ns) * 1e-9
-        self._check_saturation(f_l, w_l)
+        if self._ranges_known:
+            self._check_saturation(f_l, w_l)
         if dt > self.params.max_imu_gap_s:
             self.counters['imu_gaps'] += 1
             self._event(f'IMU gap of {dt:.2f} s')
