@@ -238,30 +238,36 @@ def build(cls: type, *values: Any) -> Any:
 
     The generated constructor builds (and then discards) a default of every nested message
     and checks each keyword, which costs more than the whole odometry computation; ``build``
-    writes the slots directly. At import it is checked once (:func:`_fast_build_works`) that
+    writes the slots directly, through a small function made once per class (as dataclasses
+    make their ``__init__``). At import it is checked once (:func:`_fast_build_works`) that
     both ways give equal messages, else the constructors are used.
     """
     if not _FAST_BUILD:
         return cls(**dict(zip(cls.get_fields_and_field_types(), values)))
-    slots = _BUILD_SLOTS.get(cls)
-    if slots is None:
-        slots = _BUILD_SLOTS[cls] = _build_slots(cls)
-    msg = cls.__new__(cls)
-    for slot, value in zip(slots, values):
-        setattr(msg, slot, value)
-    if len(slots) > len(values):  # Jazzy: the constructor's ROS_PYTHON_CHECK_FIELDS flag
-        msg._check_fields = _CHECK_FIELDS
-    return msg
+    make = _BUILDERS.get(cls)
+    if make is None:
+        make = _BUILDERS[cls] = _slot_builder(cls)
+    return make(*values)
 
 
-_BUILD_SLOTS: dict[type, tuple[str, ...]] = {}
+_BUILDERS: dict[type, Callable[..., Any]] = {}
 
 
-def _build_slots(cls: type) -> tuple[str, ...]:
-    slots = tuple(_slot(cls, name) for name in cls.get_fields_and_field_types())
-    if any(not slot.startswith('_') for slot in slots):
+def _slot_builder(cls: type) -> Callable[..., Any]:
+    """``make(field_1, ..., field_n)`` storing each field in its slot; Jazzy's classes also
+    get the constructor's ROS_PYTHON_CHECK_FIELDS flag."""
+    slots = [_slot(cls, name) for name in cls.get_fields_and_field_types()]
+    if any(not slot.startswith('_') or not slot[1:].isidentifier() for slot in slots):
         raise TypeError(f'{cls.__name__}: fields not stored in slots')
-    return slots + ('_check_fields',) if '_check_fields' in cls.__slots__ else slots
+    args = [f'v{i}' for i in range(len(slots))]
+    lines = [f'def make({", ".join(args)}):', '    m = new(cls)']
+    lines += [f'    m.{slot} = {arg}' for slot, arg in zip(slots, args)]
+    if '_check_fields' in cls.__slots__:
+        lines.append('    m._check_fields = check')
+    lines.append('    return m')
+    scope = {'new': cls.__new__, 'cls': cls, 'check': _CHECK_FIELDS}
+    exec('\n'.join(lines), scope)  # noqa: S102 -- source made above from the class's slots
+    return scope['make']
 
 
 def _stamped_header(stamp_ns: int, frame_id: str = '') -> Header:
