@@ -75,13 +75,12 @@ def mechanize_step(state: NavState, f_ib_b: Sequence[float], omega_ib_b: Sequenc
     wy = (omega_ib_b[1] - bg_y) * tau_s
     wz = (omega_ib_b[2] - bg_z) * tau_s
     sL, cL = math.sin(L), math.cos(L)
-    w = planet.omega_ie_rps
-    e2, R0 = planet.e2, planet.R0_m
+    w, e2, R0, R0_sq, R_N_num, g_e, k, g_h = planet.strapdown_constants
     # radii_of_curvature(planet, L) and surface_gravity(planet, L)
     s2 = sL ** 2
     d = 1.0 - e2 * s2
     sqrt_d = math.sqrt(d)
-    R_N, R_E = planet.meridian_numerator_m / d ** 1.5, R0 / sqrt_d
+    R_N, R_E = R_N_num / d ** 1.5, R0 / sqrt_d
     RN, RE = R_N + h, R_E + h
     # Planet rate (Groves 5.41) and transport rate (5.44) in NED.
     ie_N, ie_D = w * cL, -w * sL
@@ -105,8 +104,8 @@ def mechanize_step(state: NavState, f_ib_b: Sequence[float], omega_ib_b: Sequenc
     fE = 0.5 * ((c21 + n21) * fx + (c22 + n22) * fy + (c23 + n23) * fz)
     fD = 0.5 * ((c31 + n31) * fx + (c32 + n32) * fy + (c33 + n33) * fz)
     # Gravity (gravity_down(planet, L, h)), Coriolis and transport terms.
-    g0 = planet.g_equator_mps2 * (1.0 + planet.somigliana_k * s2) / sqrt_d
-    gD = g0 * (1.0 - planet.gravity_height_coefficient * h + 3.0 * h * h / (R0 * R0))
+    g0 = g_e * (1.0 + k * s2) / sqrt_d
+    gD = g0 * (1.0 - g_h * h + 3.0 * h * h / R0_sq)
     aN, aE, aD = en_N + 2.0 * ie_N, en_E, en_D + 2.0 * ie_D
     cN = aE * vD - aD * vE
     cE = aD * vN - aN * vD
@@ -120,7 +119,7 @@ def mechanize_step(state: NavState, f_ib_b: Sequence[float], omega_ib_b: Sequenc
     L1 = L + 0.5 * tau_s * (vN / RN + vN1 / (R_N + h1))
     R_E1 = R0 / math.sqrt(1.0 - e2 * math.sin(L1) ** 2)
     lam1 = lam + 0.5 * tau_s * (vE / (RE * cL) + vE1 / ((R_E1 + h1) * math.cos(L1)))
-    state.C_b_n = np.array(((n11, n12, n13), (n21, n22, n23), (n31, n32, n33)))
+    state.C_b_n = np.array((n11, n12, n13, n21, n22, n23, n31, n32, n33)).reshape(3, 3)
     state.v_eb_n = np.array((vN1, vE1, vD1))
     state.llh = np.array((L1, lam1, h1))
     return fN, fE, fD

@@ -66,6 +66,14 @@ class Planet:
         return (2.0 / R0) * (1.0 + self.flattening + self.omega_ie_rps ** 2 * R0 ** 2
                              * self.RP_m / self.GM_m3ps2)
 
+    @cached_property
+    def strapdown_constants(self) -> tuple[float, ...]:
+        """``(omega_ie, e2, R0, R0^2, R0 (1 - e2), g_equator, k, height coefficient)``: what
+        the strapdown step reads, in one attribute."""
+        return (self.omega_ie_rps, self.e2, self.R0_m, self.R0_m * self.R0_m,
+                self.meridian_numerator_m, self.g_equator_mps2, self.somigliana_k,
+                self.gravity_height_coefficient)
+
 
 def clairaut_normal_gravity(R0_m: float, flattening: float, omega_ie_rps: float,
                             GM_m3ps2: float) -> tuple[float, float]:
