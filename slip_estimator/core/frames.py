@@ -78,11 +78,12 @@ def dcm_to_rpy(C: np.ndarray) -> np.ndarray:
 
 def rotvec_to_dcm(phi: np.ndarray) -> np.ndarray:
     """Rodrigues: DCM of the rotation vector ``phi`` (rad), ``exp([phi x])``."""
-    angle = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
-    K = skew(phi)
+    x, y, z = np.asarray(phi, dtype=float).tolist()
+    angle = math.sqrt(x * x + y * y + z * z)
+    K = np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0)))  # skew(phi)
     if angle < 1e-8:
-        return np.eye(3) + K + 0.5 * K @ K
-    return (np.eye(3) + (math.sin(angle) / angle) * K
+        return _EYE_3 + K + 0.5 * K @ K
+    return (_EYE_3 + (math.sin(angle) / angle) * K
             + ((1.0 - math.cos(angle)) / (angle * angle)) * K @ K)
 
 

@@ -73,6 +73,7 @@ class NonHolonomic:
     def __init__(self, planet: Planet, l_bw_b: np.ndarray) -> None:
         self.planet = planet
         self.l_bw_b = np.asarray(l_bw_b, dtype=float)
+        self._skew_l = skew(self.l_bw_b)
 
     def point_velocity_b(self, state: NavState, omega_ib_b: np.ndarray) -> np.ndarray:
         """Velocity of the constrained point resolved in b, m/s."""
@@ -98,5 +99,5 @@ class NonHolonomic:
         H = np.zeros((3, N_ERR))
         H[:, ATT] = -C_n_b @ skew(state.v_eb_n)
         H[:, VEL] = -C_n_b
-        H[:, BG] = skew(self.l_bw_b)
+        H[:, BG] = self._skew_l
         return H[list(rows)]
