@@ -20,6 +20,7 @@ sort), estimation and bag write (serialize, write, close) at no per-message cost
 from __future__ import annotations
 
 import argparse
+import gc
 import sys
 import time
 from collections import Counter
@@ -109,16 +110,45 @@ def replay_bag(input_bag: str | Path, params: Params, output_bag: str | Path, *,
                else SlipEstimatorAdapter(params, estimator_factory))
     topics = set(adapter.input_types)
     items = []
-    for index, m in enumerate(read_messages(input_bag, topics)):
-        items.append(((header_stamp_ns(m.msg), m.log_time_ns, _rank(m.topic), index), m))
-    items.sort(key=lambda item: item[0])
-    inputs: Counter[str] = Counter(m.topic for _, m in items)
-    stamps = [key[0] for key, _ in items if key[0] != 0]
-    read_s = clock() - t0
+    # The input (hundreds of thousands of objects, no reference cycles) lives until the end:
+    # the cyclic garbage collector is kept from scanning it while it grows and afterwards.
+    gc_was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for index, m in enumerate(read_messages(input_bag, topics)):
+            items.append(((header_stamp_ns(m.msg), m.log_time_ns, _rank(m.topic), index), m))
+        items.sort(key=lambda item: item[0])
+        gc.freeze()
+    finally:
+        if gc_was_enabled:
+            gc.enable()
+    try:
+        inputs: Counter[str] = Counter(m.topic for _, m in items)
+        stamps = [key[0] for key, _ in items if key[0] != 0]
+        read_s = clock() - t0
+        outputs, estimation_s, t_write = _estimate_and_write(items, adapter, output_bag,
+                                                             progress, t0 + PROGRESS_EVERY_S)
+    finally:
+        gc.unfreeze()
+    t1 = clock()
+    return ReplaySummary(
+        messages_in=len(items), messages_out=sum(outputs.values()), inputs=dict(inputs),
+        outputs=dict(outputs),
+        rejected={f'{t} {r}': c for (t, r), c in sorted(adapter.rejected.items())},
+        dropped_non_finite=dict(adapter.dropped_non_finite),
+        data_duration_s=(max(stamps) - min(stamps)) * 1e-9 if stamps else 0.0,
+        wall_time_s=t1 - t0, read_s=read_s, estimation_s=estimation_s,
+        write_s=(t1 - t_write) - estimation_s)
 
+
+def _estimate_and_write(items: list, adapter: SlipEstimatorAdapter, output_bag: str | Path,
+                        progress: bool, next_progress: float
+                        ) -> tuple[Counter[str], float, float]:
+    """The estimation and write phases of :func:`replay_bag`, chunk by chunk: the output
+    counts, the estimation time and the clock at the start of the phases."""
+    clock = time.perf_counter
     outputs: Counter[str] = Counter()
     estimation_s = 0.0
-    next_progress = t0 + PROGRESS_EVERY_S
     on_message = adapter.on_message
     t_write = clock()
     with BagWriter(output_bag) as writer:
@@ -129,8 +159,7 @@ def replay_bag(input_bag: str | Path, params: Params, output_bag: str | Path, *,
                 out = on_message(m.topic, m.msg)
                 if out:
                     produced.append((stamp_ns, out))
-            t_end = clock()
-            estimation_s += t_end - t_est
+            estimation_s += clock() - t_est
             for stamp_ns, out in produced:
                 for topic, msg in out:
                     writer.write(topic, msg, stamp_ns)
@@ -139,15 +168,7 @@ def replay_bag(input_bag: str | Path, params: Params, output_bag: str | Path, *,
                 next_progress += PROGRESS_EVERY_S
                 done = min(start + CHUNK_MESSAGES, len(items))
                 print(f'replay: {done}/{len(items)} messages', file=sys.stderr, flush=True)
-    t1 = clock()
-    return ReplaySummary(
-        messages_in=len(items), messages_out=sum(outputs.values()), inputs=dict(inputs),
-        outputs=dict(outputs),
-        rejected={f'{t} {r}': c for (t, r), c in sorted(adapter.rejected.items())},
-        dropped_non_finite=dict(adapter.dropped_non_finite),
-        data_duration_s=(max(stamps) - min(stamps)) * 1e-9 if stamps else 0.0,
-        wall_time_s=t1 - t0, read_s=read_s, estimation_s=estimation_s,
-        write_s=(t1 - t_write) - estimation_s)
+    return outputs, estimation_s, t_write
 
 
 def replay_main(argv: list[str] | None = None) -> int:

@@ -156,6 +156,9 @@ def test_replay_outputs_present_and_counted(replayed):
     assert summary.read_s + summary.estimation_s + summary.write_s <= summary.wall_time_s
     assert summary.estimation_realtime_ratio == pytest.approx(
         summary.data_duration_s / summary.estimation_s)
+    # The collector settings replay_bag changes while it holds the input are restored.
+    import gc
+    assert gc.isenabled() and gc.get_freeze_count() == 0
 
 
 def test_replay_stamps_and_finite(replayed, input_bag):
