@@ -151,6 +151,14 @@ def test_replay_outputs_present_and_counted(replayed):
     assert summary.data_duration_s == pytest.approx(20.0, abs=0.01)
     assert summary.realtime_ratio > 1.0
     assert 'real time' in summary.line()
+    # The phases split the wall time (timed around the phases, nothing overlaps).
+    assert min(summary.read_s, summary.estimation_s, summary.write_s) > 0.0
+    assert summary.read_s + summary.estimation_s + summary.write_s <= summary.wall_time_s
+    assert summary.estimation_realtime_ratio == pytest.approx(
+        summary.data_duration_s / summary.estimation_s)
+    # The collector settings replay_bag changes while it holds the input are restored.
+    import gc
+    assert gc.isenabled() and gc.get_freeze_count() == 0
 
 
 def test_replay_stamps_and_finite(replayed, input_bag):
@@ -229,6 +237,7 @@ def test_replay_main_cli(input_bag, tmp_path, capsys):
                         '--output', str(tmp_path / 'cli_out')]) == 0
     line = capsys.readouterr().out.strip()
     assert line.startswith('replay: 6000 messages in') and 'real time' in line
+    assert all(part in line for part in ('bag read', 'estimation', 'bag write'))
     # Existing output and an invalid parameter file refuse to run.
     assert replay_main([str(input_bag), '--output', str(tmp_path / 'cli_out')]) == 2
     params_file.write_text('slip_estimator:\n  ros__parameters:\n    wheel_radius: -1.0\n')

@@ -6,46 +6,84 @@ says what that implies); thresholds are parameters.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
 
 class ImuWindow:
-    """Ring buffer of the most recent IMU samples (body frame), for window statistics."""
+    """The most recent IMU samples (body frame), oldest first, for window statistics.
+
+    ``add`` runs at the IMU rate and only queues the sample; the queue is moved into the
+    buffer (older rows shifted out) in two array operations when statistics are asked for
+    (at most every few samples), and the window variance is kept until the next sample.
+    """
 
     def __init__(self, n_samples: int) -> None:
-        self._buf = np.zeros((max(2, n_samples), 6))
+        self._buf = np.zeros((max(2, n_samples), 6))  # the newest self._n rows are the window
         self._n = 0
-        self._i = 0
+        self._queue: list[float] = []  # queued samples, six floats each
+        self._var: np.ndarray | None = None
 
-    def add(self, f_ib_b: np.ndarray, omega_ib_b: np.ndarray) -> None:
-        """Append one sample, dropping the oldest when full."""
-        row = self._buf[self._i]
-        row[:3] = f_ib_b
-        row[3:] = omega_ib_b
-        self._i = (self._i + 1) % len(self._buf)
-        self._n = min(self._n + 1, len(self._buf))
+    def add(self, f_ib_b: Sequence[float], omega_ib_b: Sequence[float]) -> None:
+        """Append one sample, dropping the oldest when full (lists of floats are the cheapest
+        input; arrays work too)."""
+        queue = self._queue
+        queue.extend(f_ib_b)
+        queue.extend(omega_ib_b)
+        self._var = None
+        if len(queue) >= 6 * len(self._buf):
+            self._flush()
+
+    def _flush(self) -> None:
+        queue = self._queue
+        if not queue:
+            return
+        buf, size, k = self._buf, len(self._buf), len(queue) // 6
+        if k >= size:
+            buf[:] = np.array(queue[-6 * size:], dtype=float).reshape(size, 6)
+        else:
+            buf[:-k] = buf[k:]
+            buf[-k:] = np.array(queue, dtype=float).reshape(k, 6)
+        self._n = min(self._n + k, size)
+        queue.clear()
 
     def clear(self) -> None:
         """Forget all samples."""
         self._n = 0
-        self._i = 0
+        self._queue.clear()
+        self._var = None
 
     @property
     def n(self) -> int:
         """Number of samples held."""
-        return self._n
+        return min(self._n + len(self._queue) // 6, len(self._buf))
 
     @property
     def full(self) -> bool:
         """True once the window holds its nominal number of samples."""
-        return self._n == len(self._buf)
+        return self.n == len(self._buf)
 
     def samples(self, last: int | None = None) -> np.ndarray:
-        """The newest ``last`` samples (all by default) as rows (f_x, f_y, f_z, w_x, w_y, w_z)."""
+        """The newest ``last`` samples (all by default) as rows (f_x, f_y, f_z, w_x, w_y, w_z),
+        oldest first (a copy)."""
+        self._flush()
         n = self._n if last is None else min(last, self._n)
-        idx = (self._i - n + np.arange(n)) % len(self._buf)
-        return self._buf[idx]
+        return self._buf[len(self._buf) - n:].copy()
+
+    def variance(self) -> np.ndarray:
+        """Per-column (population) variance of the samples held, as ``samples().var(axis=0)``
+        computes it (the same operations, rows in the same order), cached until the next
+        sample."""
+        if self._var is None:
+            self._flush()
+            a = self._buf[len(self._buf) - self._n:]
+            mean = a.sum(axis=0, keepdims=True)
+            mean /= self._n
+            x = a - mean
+            x *= x
+            self._var = x.sum(axis=0) / self._n
+        return self._var
 
 
 class StationaryDetector:
@@ -68,7 +106,7 @@ class StationaryDetector:
         self._wheel_stamp_ns: int | None = None
         self._wheels_stopped = False
 
-    def add_imu(self, f_ib_b: np.ndarray, omega_ib_b: np.ndarray) -> None:
+    def add_imu(self, f_ib_b: Sequence[float], omega_ib_b: Sequence[float]) -> None:
         """Feed one IMU sample."""
         self.window.add(f_ib_b, omega_ib_b)
 
@@ -88,9 +126,9 @@ class StationaryDetector:
             return False
         # Per-axis spread: the specific-force norm barely changes when the rover starts to
         # accelerate horizontally (sqrt(g^2 + a^2) ~ g), the axes do.
-        std = self.window.samples().std(axis=0)
-        return bool(std[:3].max() <= self.accel_std_max_mps2
-                    and std[3:].max() <= self.gyro_std_max_rps)
+        v = self.window.variance().tolist()
+        return (all(math.sqrt(x) <= self.accel_std_max_mps2 for x in v[:3])
+                and all(math.sqrt(x) <= self.gyro_std_max_rps for x in v[3:]))
 
     def is_stationary(self, now_ns: int) -> bool:
         """The decision at ``now_ns``."""

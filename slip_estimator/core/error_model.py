@@ -9,6 +9,7 @@ Here ``R_N' = R_N(L) + h`` and ``R_E' = R_E(L) + h``.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -25,50 +26,106 @@ def geocentric_surface_radius(planet: Planet, L_rad: float) -> float:
 
 def curvilinear_to_ned(planet: Planet, L_rad: float, h_m: float) -> np.ndarray:
     """``T_r(n)^p`` (eq. 47): takes a NED displacement (m) to (dL, dlambda, dh)."""
+    return np.diag(curvilinear_to_ned_diag(planet, L_rad, h_m))
+
+
+def curvilinear_to_ned_diag(planet: Planet, L_rad: float, h_m: float) -> np.ndarray:
+    """The diagonal of :func:`curvilinear_to_ned` (``T @ x == T_diag * x``)."""
     R_N, R_E = radii_of_curvature(planet, L_rad)
-    return np.diag([1.0 / (R_N + h_m), 1.0 / ((R_E + h_m) * math.cos(L_rad)), -1.0])
+    return np.array([1.0 / (R_N + h_m), 1.0 / ((R_E + h_m) * math.cos(L_rad)), -1.0])
 
 
-def system_matrix(state: NavState, f_ib_n: np.ndarray, planet: Planet) -> np.ndarray:
-    """Continuous-time error-state system matrix F (15x15), paper eq. 9 and 31-38."""
-    L, _, h = state.llh
-    vN, vE, vD = state.v_eb_n
+def _flat_indices(blocks: tuple[tuple[slice, slice], ...]) -> np.ndarray:
+    """Row-major flat indices into a 15x15 matrix of the 3x3 blocks ``(rows, cols)``."""
+    return np.array([r * N_ERR + c for rows, cols in blocks
+                     for r in range(rows.start, rows.stop) for c in range(cols.start, cols.stop)])
+
+
+# The non-zero blocks of F in the order system_matrix lists their entries.
+_F_BLOCKS = _flat_indices(((ATT, ATT), (ATT, VEL), (ATT, POS), (ATT, BG), (VEL, ATT),
+                           (VEL, VEL), (VEL, POS), (VEL, BA), (POS, VEL), (POS, POS)))
+
+
+def system_matrix(state: NavState, f_ib_n: np.ndarray | Sequence[float],
+                  planet: Planet) -> np.ndarray:
+    """Continuous-time error-state system matrix F (15x15), paper eq. 9 and 31-38.
+
+    Written as one list of the entries of its non-zero 3x3 blocks (row-major), put into the
+    matrix in one operation: F is built at every covariance propagation.
+    """
+    L, _, h = state.llh.tolist()
+    vN, vE, vD = state.v_eb_n.tolist()
+    fN, fE, fD = f_ib_n.tolist() if isinstance(f_ib_n, np.ndarray) else map(float, f_ib_n)
     w = planet.omega_ie_rps
     R_N, R_E = radii_of_curvature(planet, L)
     RN, RE = R_N + h, R_E + h
     sL, cL, tL = math.sin(L), math.cos(L), math.tan(L)
-    w_in_n = np.array([w * cL + vE / RE, -vN / RN, -w * sL - vE * tL / RE])
-
-    F = np.zeros((N_ERR, N_ERR))
-    F[ATT, ATT] = -skew(w_in_n)
-    F[ATT, VEL] = [[0.0, -1.0 / RE, 0.0], [1.0 / RN, 0.0, 0.0], [0.0, tL / RE, 0.0]]
-    F[ATT, POS] = [[w * sL, 0.0, vE / RE ** 2],
-                   [0.0, 0.0, -vN / RN ** 2],
-                   [w * cL + vE / (RE * cL ** 2), 0.0, -vE * tL / RE ** 2]]
-    F[ATT, BG] = state.C_b_n
-    F[VEL, ATT] = -skew(f_ib_n)
-    F[VEL, VEL] = [[vD / RN, -2.0 * vE * tL / RE - 2.0 * w * sL, vN / RN],
-                   [vE * tL / RE + 2.0 * w * sL, (vN * tL + vD) / RE, vE / RE + 2.0 * w * cL],
-                   [-2.0 * vN / RN, -2.0 * vE / RE - 2.0 * w * cL, 0.0]]
+    # omega_in_n = omega_ie_n + omega_en_n (F11 = -[omega_in_n x]).
+    wN, wE, wD = w * cL + vE / RE, -vN / RN, -w * sL - vE * tL / RE
     g0 = surface_gravity(planet, L)
     r_eS = geocentric_surface_radius(planet, L)
-    F[VEL, POS] = [
-        [-vE ** 2 / (RE * cL ** 2) - 2.0 * vE * w * cL, 0.0,
-         vE ** 2 * tL / RE ** 2 - vN * vD / RN ** 2],
-        [vN * vE / (RE * cL ** 2) + 2.0 * vN * w * cL - 2.0 * vD * w * sL, 0.0,
-         -(vN * vE * tL + vE * vD) / RE ** 2],
-        [2.0 * vE * w * sL, 0.0, vE ** 2 / RE ** 2 + vN ** 2 / RN ** 2 - 2.0 * g0 / r_eS]]
-    F[VEL, BA] = state.C_b_n
-    F[POS, VEL] = curvilinear_to_ned(planet, L, h)
-    F[POS, POS] = [[0.0, 0.0, -vN / RN ** 2],
-                   [vE * sL / (RE * cL ** 2), 0.0, -vE / (RE ** 2 * cL)],
-                   [0.0, 0.0, 0.0]]
-    return F
+    C = state.C_b_n.ravel().tolist()
+    values = [
+        # F11 = -[omega_in_n x]
+        0.0, wD, -wE,
+        -wD, 0.0, wN,
+        wE, -wN, 0.0,
+        # F12
+        0.0, -1.0 / RE, 0.0,
+        1.0 / RN, 0.0, 0.0,
+        0.0, tL / RE, 0.0,
+        # F13
+        w * sL, 0.0, vE / RE ** 2,
+        0.0, 0.0, -vN / RN ** 2,
+        w * cL + vE / (RE * cL ** 2), 0.0, -vE * tL / RE ** 2,
+        # F15 = C_b_n
+        *C,
+        # F21 = -[f_ib_n x]
+        0.0, fD, -fE,
+        -fD, 0.0, fN,
+        fE, -fN, 0.0,
+        # F22
+        vD / RN, -2.0 * vE * tL / RE - 2.0 * w * sL, vN / RN,
+        vE * tL / RE + 2.0 * w * sL, (vN * tL + vD) / RE, vE / RE + 2.0 * w * cL,
+        -2.0 * vN / RN, -2.0 * vE / RE - 2.0 * w * cL, 0.0,
+        # F23
+        -vE ** 2 / (RE * cL ** 2) - 2.0 * vE * w * cL, 0.0,
+        vE ** 2 * tL / RE ** 2 - vN * vD / RN ** 2,
+        vN * vE / (RE * cL ** 2) + 2.0 * vN * w * cL - 2.0 * vD * w * sL, 0.0,
+        -(vN * vE * tL + vE * vD) / RE ** 2,
+        2.0 * vE * w * sL, 0.0, vE ** 2 / RE ** 2 + vN ** 2 / RN ** 2 - 2.0 * g0 / r_eS,
+        # F24 = C_b_n
+        *C,
+        # F32 = T_r(n)^p (curvilinear_to_ned)
+        1.0 / RN, 0.0, 0.0,
+        0.0, 1.0 / (RE * cL), 0.0,
+        0.0, 0.0, -1.0,
+        # F33
+        0.0, 0.0, -vN / RN ** 2,
+        vE * sL / (RE * cL ** 2), 0.0, -vE / (RE ** 2 * cL),
+        0.0, 0.0, 0.0,
+    ]
+    F = np.zeros(N_ERR * N_ERR)
+    F[_F_BLOCKS] = values
+    return F.reshape(N_ERR, N_ERR)
 
 
 def transition_matrix(F: np.ndarray, tau_s: float) -> np.ndarray:
     """First-order state transition matrix ``Phi = I + F tau`` (paper eq. 11)."""
     return np.eye(N_ERR) + F * tau_s
+
+
+# process_noise computes ten 3x3 blocks of Q as one stack: the eight off-diagonal blocks of one
+# triangle (their mirror images are the transposes), then Q22 and Q33 without their diagonal
+# terms, which are added with the diagonal of Q22's and Q32's scaled identity parts.
+_Q_BLOCKS = ((VEL, ATT), (POS, ATT), (POS, VEL), (POS, BA), (POS, BG), (ATT, BG), (VEL, BA),
+             (VEL, BG), (VEL, VEL), (POS, POS))
+_Q_FLAT = _flat_indices(_Q_BLOCKS)
+_Q_MIRROR = _flat_indices(tuple((c, r) for r, c in _Q_BLOCKS[:8])).reshape(8, 3, 3) \
+    .transpose(0, 2, 1).ravel()
+_Q_DIAGONAL = np.r_[np.arange(N_ERR) * (N_ERR + 1),  # the diagonal of Q
+                    [r * N_ERR + c for r, c in zip(range(6, 9), range(3, 6))],  # diag of Q32
+                    [r * N_ERR + c for r, c in zip(range(3, 6), range(6, 9))]]  # diag of Q23
 
 
 def process_noise(state: NavState, F: np.ndarray, tau_s: float, S_rg: float, S_ra: float,
@@ -80,37 +137,40 @@ def process_noise(state: NavState, F: np.ndarray, tau_s: float, S_rg: float, S_r
     S_rg, S_ra : gyro / accelerometer white-noise PSD, rad^2/s and m^2/s^3.
     S_bad, S_bgd : accelerometer / gyro bias-variation PSD, m^2/s^5 and rad^2/s^3.
 
-    ``T_r(n)^p`` is diagonal, so products with it are written as row / column scalings.
+    ``T_r(n)^p`` is diagonal, so products with it are written as row / column scalings. Every
+    block is ``coefficient * rows * X`` (Q33 also scaled by columns) with X one of F21,
+    F21 F21^T, C, F21 C and rows either T's diagonal or ones, plus a scaled identity or T on
+    some diagonals: the blocks are computed as one stack (the covariance propagation runs
+    this at every epoch).
     """
     t = tau_s
     t2, t3, t4, t5 = t * t, t ** 3, t ** 4, t ** 5
     C = state.C_b_n
     F21 = F[VEL, ATT]
-    Td = np.diag(curvilinear_to_ned(planet, state.llh[0], state.llh[2]))
-    Tc = Td[:, None]  # T @ X == Tc * X ;  X @ T == X * Td
+    T0, T1, T2 = Td = curvilinear_to_ned_diag(planet, state.llh[0], state.llh[2]).tolist()
     FFt = F21 @ F21.T
     F21C = F21 @ C
-    I3 = np.eye(3)
-    a_rg2, a_rg3 = S_rg * t2 / 2.0 + S_bgd * t4 / 4.0, S_rg * t3 / 3.0 + S_bgd * t5 / 5.0
-    Q21 = a_rg2 * F21
-    Q31 = a_rg3 * Tc * F21
-    Q32 = ((S_ra * t2 / 2.0 + S_bad * t4 / 4.0) * np.diag(Td)
-           + (S_rg * t4 / 4.0 + S_bgd * t ** 6 / 6.0) * Tc * FFt)
-    Q34 = S_bad * t3 / 3.0 * Tc * C
-    Q35 = S_bgd * t4 / 4.0 * Tc * F21C
-    Q15 = S_bgd * t2 / 2.0 * C
-    Q24 = S_bad * t2 / 2.0 * C
-    Q25 = S_bgd * t3 / 3.0 * F21C
-    Q = np.zeros((N_ERR, N_ERR))
-    Q[ATT, ATT] = (S_rg * t + S_bgd * t3 / 3.0) * I3
-    Q[VEL, VEL] = (S_ra * t + S_bad * t3 / 3.0) * I3 + a_rg3 * FFt
-    Q[POS, POS] = ((S_ra * t3 / 3.0 + S_bad * t5 / 5.0) * np.diag(Td * Td)
-                   + (S_rg * t5 / 5.0 + S_bgd * t ** 7 / 7.0) * Tc * FFt * Td)
-    Q[BA, BA] = S_bad * t * I3
-    Q[BG, BG] = S_bgd * t * I3
-    for (r, c), block in (((VEL, ATT), Q21), ((POS, ATT), Q31), ((POS, VEL), Q32),
-                          ((POS, BA), Q34), ((POS, BG), Q35), ((ATT, BG), Q15),
-                          ((VEL, BA), Q24), ((VEL, BG), Q25)):
-        Q[r, c] = block
-        Q[c, r] = block.T
-    return Q
+    a_rg3 = S_rg * t3 / 3.0 + S_bgd * t5 / 5.0
+    # Q21, Q31, Q32, Q34, Q35, Q15, Q24, Q25, Q22, Q33 (see _Q_BLOCKS): coefficient times
+    # the row scale (T's diagonal or one), as floats.
+    coef_T = (a_rg3, S_rg * t4 / 4.0 + S_bgd * t ** 6 / 6.0, S_bad * t3 / 3.0,
+              S_bgd * t4 / 4.0)
+    coef_1 = (S_bgd * t2 / 2.0, S_bad * t2 / 2.0, S_bgd * t3 / 3.0, a_rg3)
+    a_rg2 = S_rg * t2 / 2.0 + S_bgd * t4 / 4.0
+    c_33 = S_rg * t5 / 5.0 + S_bgd * t ** 7 / 7.0
+    scale = np.array([(a_rg2, a_rg2, a_rg2)] + [(c * T0, c * T1, c * T2) for c in coef_T]
+                     + [(c, c, c) for c in coef_1] + [(c_33 * T0, c_33 * T1, c_33 * T2)])
+    blocks = scale[:, :, None] * np.array([F21, F21, FFt, C, F21C, C, C, F21C, FFt, FFt])
+    blocks[9] *= Td
+    values = blocks.ravel()
+    Q = np.zeros(N_ERR * N_ERR)
+    Q[_Q_FLAT] = values
+    Q[_Q_MIRROR] = values[:72]
+    a_att, a_vel = S_rg * t + S_bgd * t3 / 3.0, S_ra * t + S_bad * t3 / 3.0
+    a_pos, a_32 = S_ra * t3 / 3.0 + S_bad * t5 / 5.0, S_ra * t2 / 2.0 + S_bad * t4 / 4.0
+    a_ba, a_bg = S_bad * t, S_bgd * t
+    Q[_Q_DIAGONAL] += (a_att, a_att, a_att, a_vel, a_vel, a_vel,
+                       a_pos * (T0 * T0), a_pos * (T1 * T1), a_pos * (T2 * T2),
+                       a_ba, a_ba, a_ba, a_bg, a_bg, a_bg,
+                       a_32 * T0, a_32 * T1, a_32 * T2, a_32 * T0, a_32 * T1, a_32 * T2)
+    return Q.reshape(N_ERR, N_ERR)

@@ -41,9 +41,15 @@ from slip_estimator.core.error_model import (
     system_matrix,
 )
 from slip_estimator.core.measurements import NonHolonomic, ZeroAngularRate, ZeroVelocity
-from slip_estimator.core.mechanization import mechanize
+from slip_estimator.core.mechanization import mechanize_step
 from slip_estimator.core.params import Params
-from slip_estimator.core.planet import PLANETS, earth_rate_n, gravity_n, llh_to_local_enu
+from slip_estimator.core.planet import (
+    PLANETS,
+    LocalEnu,
+    earth_rate_n,
+    gravity_n,
+    radii_of_curvature,
+)
 from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
 from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
@@ -59,11 +65,19 @@ from slip_estimator.core.types import (
 
 _NS = 1_000_000_000
 _HISTORY_S = 2.0
+_HISTORY_NS = int(_HISTORY_S * _NS)
 _MAX_PENDING_WHEEL = 50
 _CHANGE_SAMPLES = 3  # consecutive wheel samples beyond the change threshold
 _ANCHOR_NS = 500_000_000  # aided samples before a slip change that anchor its measurement
-_POSE_IDX = np.r_[POS, ATT]
-_TWIST_IDX = np.r_[VEL, BG]
+# Odometry covariances. Pose: (position, attitude psi) in odom (ENU) is a signed permutation
+# of (POS, ATT) scaled by 1 / T_r(n)^p, written as indices and signs: rows/cols
+# (E, N, U) <- (lambda, L, h) and (psi_E, psi_N, psi_U) <- (psi_E, psi_N, -psi_D).
+_POSE_IX = np.ix_([7, 6, 8, 1, 0, 2], [7, 6, 8, 1, 0, 2])
+_POSE_SIGN = np.array([1.0, 1.0, -1.0, 1.0, 1.0, -1.0])
+_TWIST_IX = np.ix_(np.r_[VEL, BG], np.r_[VEL, BG])
+_FLU_FRD_SIGN = np.array([1.0, -1.0, -1.0])  # frames.C_FLU_FRD as a diagonal
+_EYE_15 = np.eye(N_ERR)
+_EYE_15.flags.writeable = False
 
 
 class SlipEstimator:
@@ -83,6 +97,8 @@ class SlipEstimator:
         self.l_bw_b = -r_imu_b
         self._l_bw_b = tuple(self.l_bw_b.tolist())
         self._wheel_latency_ns = int(p.wheel_latency_s * _NS)
+        self._wheel_timeout_ns = int(p.wheel_timeout_s * _NS)
+        self._ranges_known = p.accel_range_mps2 > 0.0 or p.gyro_range_rps > 0.0
         self.zupt = ZeroVelocity()
         self.zaru = ZeroAngularRate(self.planet)
         self.nhc = NonHolonomic(self.planet, self.l_bw_b)
@@ -114,13 +130,16 @@ class SlipEstimator:
             p.stationary_gyro_std, p.stationary_wheel_speed_mps, int(p.wheel_timeout_s * _NS))
         self._align_rows: list[np.ndarray] = []
         self._acc_tau = 0.0
-        self._acc_f_n = np.zeros(3)
+        # Per-sample accumulators as lists of floats (numpy costs ~1 us per 3-vector operation;
+        # the element-wise float sums are the same).
+        self._acc_f_n = [0.0, 0.0, 0.0]  # sum of f_ib_n * dt since the last propagation
         self._acc_n = 0
         self._next_update_ns: int | None = None
-        self._since_update = np.zeros(3)
+        self._since_update = [0.0, 0.0, 0.0]  # sum of omega_ib_b since the last update
         self._since_update_n = 0
         self._omega_ib_b = np.zeros(3)
         self._llh0: np.ndarray | None = None
+        self._odom_frame: LocalEnu | None = None
         self._history: deque = deque()
         self._pending: deque = deque()
         self._last_wheel_ns: int | None = None
@@ -170,12 +189,13 @@ class SlipEstimator:
         self.counters['imu_samples'] += 1
         prev_ns, self.stamp_ns = self.stamp_ns, sample.stamp_ns
         self._omega_ib_b = w_b
-        self.stationary.add_imu(f_b, w_b)
+        self.stationary.add_imu(f_l, w_l)
         self.timing.add_imu(sample.stamp_ns, w_l[2])
         if prev_ns is None:
             return self._slip_before_alignment()
         dt = (sample.stamp_ns - prev_ns) * 1e-9
-        self._check_saturation(f_b, w_b)
+        if self._ranges_known:
+            self._check_saturation(f_l, w_l)
         if dt > self.params.max_imu_gap_s:
             self.counters['imu_gaps'] += 1
             self._event(f'IMU gap of {dt:.2f} s')
@@ -190,11 +210,17 @@ class SlipEstimator:
             self._collect_alignment(f_b, w_b, sample.stamp_ns)
             return self._slip_before_alignment()
         # 3. mechanization
-        f_n = mechanize(self.state, f_b, w_b, dt, self.planet)
+        fN, fE, fD = mechanize_step(self.state, f_l, w_l, dt, self.planet)
         self._acc_tau += dt
-        self._acc_f_n += f_n * dt
+        acc = self._acc_f_n
+        acc[0] += fN * dt
+        acc[1] += fE * dt
+        acc[2] += fD * dt
         self._acc_n += 1
-        self._since_update += w_b
+        acc = self._since_update
+        acc[0] += w_l[0]
+        acc[1] += w_l[1]
+        acc[2] += w_l[2]
         self._since_update_n += 1
         # 4. covariance propagation (decimated), and 5. pseudo-measurements at the first
         # propagation epoch after they are due (so an update never forces an extra propagation)
@@ -205,7 +231,7 @@ class SlipEstimator:
                 self._check_filter_health(sample.stamp_ns)
                 if self.state is None:
                     return []
-        self._record_history(sample.stamp_ns, w_b)
+        self._record_history(sample.stamp_ns, w_l)
         # 6. slip
         return self._due_slip()
 
@@ -240,11 +266,11 @@ class SlipEstimator:
     def _event(self, text: str) -> None:
         self._events.append((self.stamp_ns, text))
 
-    def _check_saturation(self, f_b: np.ndarray, w_b: np.ndarray) -> None:
+    def _check_saturation(self, f_b: list[float], w_b: list[float]) -> None:
         p = self.params
-        if ((p.accel_range_mps2 > 0.0 and float(np.abs(f_b).max()) >= 0.999 * p.accel_range_mps2)
+        if ((p.accel_range_mps2 > 0.0 and max(map(abs, f_b)) >= 0.999 * p.accel_range_mps2)
                 or (p.gyro_range_rps > 0.0
-                    and float(np.abs(w_b).max()) >= 0.999 * p.gyro_range_rps)):
+                    and max(map(abs, w_b)) >= 0.999 * p.gyro_range_rps)):
             self.counters['imu_saturated'] += 1
             self._event('IMU at its measurement range (clipping)')
 
@@ -267,7 +293,7 @@ class SlipEstimator:
         d[VEL] = 1.0
         d[POS] = (np.diag(T) * (0.01 + p.max_wheel_speed_mps * gap_s)) ** 2
         self.P = np.diag(d)
-        self._acc_tau, self._acc_f_n, self._acc_n = 0.0, np.zeros(3), 0
+        self._acc_tau, self._acc_f_n, self._acc_n = 0.0, [0.0, 0.0, 0.0], 0
         self._history.clear()
         self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
         self._from_rest = False  # the velocity now comes from the rim: not an anchor
@@ -280,20 +306,23 @@ class SlipEstimator:
         """Covariance must stay finite, symmetric and positive definite; the state must stay
         within physical bounds. Repair what can be repaired, otherwise re-initialise."""
         p = self.params
-        if not (np.isfinite(self.P).all() and np.isfinite(self.state.v_eb_n).all()
-                and np.isfinite(self.state.C_b_n).all() and np.isfinite(self.state.llh).all()):
+        st = self.state
+        # A finite sum has finite terms; only a non-finite sum (NaN/Inf, or an overflow of
+        # finite terms) needs the element-wise check.
+        if not (math.isfinite(float(self.P.sum()) + sum(st.v_eb_n.tolist())
+                              + sum(st.C_b_n.ravel().tolist()) + sum(st.llh.tolist()))
+                or (np.isfinite(self.P).all() and np.isfinite(st.v_eb_n).all()
+                    and np.isfinite(st.C_b_n).all() and np.isfinite(st.llh).all())):
             self.counters['resets'] += 1
             self._event('non-finite filter state: full reset, re-aligning')
             self._reset_filter()
             return
-        d = np.diag(self.P)
-        if d.min() <= 0.0:
+        if self.P.diagonal().min() <= 0.0:
             w, V = np.linalg.eigh(kalman.symmetrize(self.P))
             self.P = kalman.symmetrize((V * np.maximum(w, 1e-18)) @ V.T)
             self.counters['covariance_repairs'] += 1
             self._event('covariance lost positive definiteness: repaired')
-        st = self.state
-        speed = float(np.linalg.norm(st.v_eb_n))
+        speed = math.sqrt(st.v_eb_n.dot(st.v_eb_n))  # np.linalg.norm of a vector
         bias_out = (np.abs(st.b_a).max() > 10.0 * p.initial_accel_bias_std
                     or np.abs(st.b_g).max() > 10.0 * p.initial_gyro_bias_std)
         if speed > 2.0 * p.max_wheel_speed_mps or bias_out:
@@ -331,6 +360,7 @@ class SlipEstimator:
         self.state = NavState(C_b_n, np.zeros(3), llh, np.zeros(3), b_g)
         # Base_link position at alignment: the origin of odom.
         self._llh0 = self._base_llh()
+        self._odom_frame = LocalEnu(self.planet, self._llh0)
         self.P = self._initial_covariance(f)
         self._next_update_ns = stamp_ns
         self._align_rows = []
@@ -360,14 +390,18 @@ class SlipEstimator:
         if self._acc_n == 0:
             return
         tau = self._acc_tau
-        F = system_matrix(self.state, self._acc_f_n / tau, self.planet)
+        a_N, a_E, a_D = self._acc_f_n
+        F = system_matrix(self.state, (a_N / tau, a_E / tau, a_D / tau), self.planet)
         Ft = F * tau
-        Phi = np.eye(N_ERR) + Ft + 0.5 * (Ft @ Ft)
+        Phi = Ft + _EYE_15  # Phi = I + F tau + (F tau)^2 / 2
+        Ft2 = Ft @ Ft
+        Ft2 *= 0.5
+        Phi += Ft2
         Q = process_noise(self.state, F, tau, *self._vibration_psd(), self.planet)
         self.P = kalman.predict(self.P, Phi, Q)
         self.state.C_b_n = frames.orthonormalize(self.state.C_b_n)
         self._acc_tau = 0.0
-        self._acc_f_n = np.zeros(3)
+        self._acc_f_n = [0.0, 0.0, 0.0]
         self._acc_n = 0
 
     def _vibration_psd(self) -> tuple[float, float, float, float]:
@@ -385,11 +419,11 @@ class SlipEstimator:
         k = self.params.vibration_noise_fraction
         if k <= 0.0 or self.stationary.window.n < 2:
             return self._S
-        var = self.stationary.window.samples().var(axis=0)
+        var = self.stationary.window.variance().tolist()  # finite: samples are checked
         dt = self._nominal_dt
         # Only the spread beyond the white noise already in S (sigma^2 = S / dt per sample).
-        excess_g = max(0.0, float(var[3:].max()) - S_rg / dt)
-        excess_a = max(0.0, float(var[:3].max()) - S_ra / dt)
+        excess_g = max(0.0, max(var[3:]) - S_rg / dt)
+        excess_a = max(0.0, max(var[:3]) - S_ra / dt)
         return S_rg + k * k * excess_g * dt, S_ra + k * k * excess_a * dt, S_bad, S_bgd
 
     def _apply(self, name: str, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
@@ -425,9 +459,9 @@ class SlipEstimator:
         self._propagate_covariance()
         self.last_records = []
         self._next_update_ns = stamp_ns + int(_NS / p.update_rate_hz)
-        w_mean = self._since_update / max(1, self._since_update_n)
+        w_mean = np.array(self._since_update) / max(1, self._since_update_n)
         period = max(1, self._since_update_n) * self._nominal_dt
-        self._since_update = np.zeros(3)
+        self._since_update = [0.0, 0.0, 0.0]
         self._since_update_n = 0
         self.is_stationary = self.stationary.is_stationary(stamp_ns)
         w_nb_b = w_mean - self.state.b_g
@@ -447,21 +481,21 @@ class SlipEstimator:
                         self.nhc.jacobian(self.state, rows), R, tuple(names[r] for r in rows))
 
     # ------------------------------------------------------------------ slip
-    def _base_velocity_b(self, omega_ib_b: np.ndarray) -> np.ndarray:
-        """Velocity of base_link's origin resolved in b (FRD), m/s."""
-        return self.nhc.point_velocity_b(self.state, omega_ib_b)
-
-    def _record_history(self, stamp_ns: int, w_b: np.ndarray) -> None:
+    def _record_history(self, stamp_ns: int, w_b: list[float]) -> None:
         # Forward component of NonHolonomic.point_velocity_b, in scalars (runs at IMU rate;
         # the planet-rate part of the lever-arm term, < 3e-5 m/s, is left out).
         st = self.state
-        wx, wy, wz = (w_b - st.b_g).tolist()
+        _, bg_y, bg_z = st.b_g.tolist()
+        wy, wz = w_b[1] - bg_y, w_b[2] - bg_z
         _, ly, lz = self._l_bw_b
-        v_fwd = float(st.C_b_n[:, 0] @ st.v_eb_n) + wy * lz - wz * ly
-        self._history.append((stamp_ns, v_fwd, wz))
-        horizon = stamp_ns - int(_HISTORY_S * _NS)
-        while self._history and self._history[0][0] < horizon:
-            self._history.popleft()
+        c1, c2, c3 = st.C_b_n[:, 0].tolist()
+        vN, vE, vD = st.v_eb_n.tolist()
+        v_fwd = (c1 * vN + c2 * vE + c3 * vD) + wy * lz - wz * ly
+        history = self._history
+        history.append((stamp_ns, v_fwd, wz))
+        horizon = stamp_ns - _HISTORY_NS
+        while history[0][0] < horizon:  # never empties: the newest entry is not older
+            history.popleft()
 
     def _history_at(self, stamp_ns: int) -> tuple[float, float] | None:
         """Forward speed and yaw rate (FRD) at ``stamp_ns`` by linear interpolation."""
@@ -713,9 +747,8 @@ class SlipEstimator:
 
     def _stale_check(self) -> list[SlipEstimate]:
         """Wheel dropout: report "unknown" once per timeout instead of guessing."""
-        timeout = int(self.params.wheel_timeout_s * _NS)
         last = self._last_stale_ns if self._last_stale_ns is not None else self._last_wheel_ns
-        if last is None or self.stamp_ns - last <= timeout:
+        if last is None or self.stamp_ns - last <= self._wheel_timeout_ns:
             return []
         self._last_stale_ns = self.stamp_ns
         self._event(f'wheel data missing for {(self.stamp_ns - self._last_wheel_ns) * 1e-9:.1f} s:'
@@ -729,31 +762,51 @@ class SlipEstimator:
                                                    self.state.llh[2]) @ r_bw_n
 
     def odometry(self) -> OdometryEstimate | None:
-        """Current fused solution of base_link in odom, or None before alignment."""
+        """Current fused solution of base_link in odom, or None before alignment.
+
+        Output only (nothing here feeds back into the filter), on floats where numpy would
+        cost more than the arithmetic; a test checks it against the matrix formulas."""
         if self.state is None:
             return None
         st = self.state
-        p_o = llh_to_local_enu(self.planet, self._base_llh(), self._llh0)
-        C_base_odom = frames.body_ned_to_base_enu(st.C_b_n)
-        w_b = self._omega_ib_b - st.b_g - st.C_b_n.T @ earth_rate_n(self.planet, st.llh[0])
-        v_b = self._base_velocity_b(self._omega_ib_b)
+        L, lam, h = st.llh.tolist()
+        c11, c12, c13, c21, c22, c23, c31, c32, c33 = C = st.C_b_n.ravel().tolist()
+        vN, vE, vD = st.v_eb_n.tolist()
+        lx, ly, lz = self._l_bw_b
+        R_N, R_E = radii_of_curvature(self.planet, L)
+        T_L, T_lam = 1.0 / (R_N + h), 1.0 / ((R_E + h) * math.cos(L))  # T_r(n)^p, T_h = -1
+        # base_link position: llh + T C_b_n l_bw_b, in odom.
+        p_o = self._odom_frame.enu(L + T_L * (c11 * lx + c12 * ly + c13 * lz),
+                                   lam + T_lam * (c21 * lx + c22 * ly + c23 * lz),
+                                   h - (c31 * lx + c32 * ly + c33 * lz))
+        # C_base_odom = C_ENU_NED C_b_n C_FLU_FRD: rows N, E swapped, D negated; y, z negated.
+        q = frames.dcm_to_quat_wxyz_floats(c21, -c22, -c23, c11, -c12, -c13, -c31, c32, c33)
+        # omega_eb_b = omega_ib_b - b_g - C_n_b omega_ie_n; v = C_n_b v_eb_n + omega_eb_b x l.
+        w_ie = self.planet.omega_ie_rps
+        w_ie_N, w_ie_D = w_ie * math.cos(L), -w_ie * math.sin(L)
+        o1, o2, o3 = self._omega_ib_b.tolist()
+        b1, b2, b3 = st.b_g.tolist()
+        wx = o1 - b1 - (c11 * w_ie_N + c31 * w_ie_D)
+        wy = o2 - b2 - (c12 * w_ie_N + c32 * w_ie_D)
+        wz = o3 - b3 - (c13 * w_ie_N + c33 * w_ie_D)
+        vx = c11 * vN + c21 * vE + c31 * vD + (wy * lz - wz * ly)
+        vy = c12 * vN + c22 * vE + c32 * vD + (wz * lx - wx * lz)
+        vz = c13 * vN + c23 * vE + c33 * vD + (wx * ly - wy * lx)
         # Covariances from P of the last propagation epoch (at most covariance_decimation
         # samples old). Pose: position (curvilinear -> NED m -> ENU) and attitude psi (NED ->
-        # ENU); twist: velocity (NED -> base_link) and gyro bias (b -> base_link) plus noise.
-        T_inv = 1.0 / np.diag(curvilinear_to_ned(self.planet, st.llh[0], st.llh[2]))
+        # ENU), i.e. M P M^T with M = diag(C_ENU_NED T^-1, C_ENU_NED), a scaled signed
+        # permutation: indexing and scaling. Twist: velocity (NED -> base_link) and gyro bias
+        # (b -> base_link), M = diag(C_FLU_FRD C_n_b, C_FLU_FRD), plus the gyro noise.
+        s = np.array((1.0 / T_lam, 1.0 / T_L, 1.0, 1.0, 1.0, -1.0))
+        pose_cov = (s[:, None] * s) * self.P[_POSE_IX]  # symmetric as P is: s_a s_b = s_b s_a
         M = np.zeros((6, 6))
-        M[0:3, 0:3] = frames.C_ENU_NED * T_inv
-        M[3:6, 3:6] = frames.C_ENU_NED
-        P_pa = self.P[_POSE_IDX][:, _POSE_IDX]
-        pose_cov = M @ P_pa @ M.T
-        M[0:3, 0:3] = frames.C_FLU_FRD @ st.C_b_n.T
-        M[3:6, 3:6] = frames.C_FLU_FRD
-        P_vb = self.P[_TWIST_IDX][:, _TWIST_IDX]
-        twist_cov = M @ P_vb @ M.T
-        twist_cov[3:6, 3:6] += np.eye(3) * self.params.gyro_noise_density ** 2 / self._nominal_dt
-        return OdometryEstimate(self.stamp_ns, p_o, frames.dcm_to_quat_wxyz(C_base_odom),
-                                frames.C_FLU_FRD @ v_b, frames.C_FLU_FRD @ w_b,
-                                kalman.symmetrize(pose_cov), kalman.symmetrize(twist_cov))
+        M[:3, :3] = (C[0:9:3], [-c for c in C[1:9:3]], [-c for c in C[2:9:3]])
+        M[[3, 4, 5], [3, 4, 5]] = _FLU_FRD_SIGN
+        twist_cov = M @ self.P[_TWIST_IX] @ M.T
+        twist_cov[[3, 4, 5], [3, 4, 5]] += self.params.gyro_noise_density ** 2 / self._nominal_dt
+        return OdometryEstimate(self.stamp_ns, np.array(p_o), np.array(q),
+                                np.array((vx, -vy, -vz)), np.array((wx, -wy, -wz)),
+                                pose_cov, kalman.symmetrize(twist_cov))
 
     def health(self) -> Health:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""

@@ -24,6 +24,8 @@ C_FLU_FRD = np.diag([1.0, -1.0, -1.0])
 """Takes a vector resolved in an FLU frame to the FRD frame with the same x axis (and back)."""
 C_ENU_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 """Takes a vector resolved in ENU to NED (and back)."""
+_EYE_3 = np.eye(3)
+_EYE_3.flags.writeable = False
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -76,41 +78,48 @@ def dcm_to_rpy(C: np.ndarray) -> np.ndarray:
 
 def rotvec_to_dcm(phi: np.ndarray) -> np.ndarray:
     """Rodrigues: DCM of the rotation vector ``phi`` (rad), ``exp([phi x])``."""
-    angle = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
-    K = skew(phi)
+    x, y, z = np.asarray(phi, dtype=float).tolist()
+    angle = math.sqrt(x * x + y * y + z * z)
+    K = np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0)))  # skew(phi)
     if angle < 1e-8:
-        return np.eye(3) + K + 0.5 * K @ K
-    return (np.eye(3) + (math.sin(angle) / angle) * K
+        return _EYE_3 + K + 0.5 * K @ K
+    return (_EYE_3 + (math.sin(angle) / angle) * K
             + ((1.0 - math.cos(angle)) / (angle * angle)) * K @ K)
 
 
 def orthonormalize(C: np.ndarray) -> np.ndarray:
     """Removes the numerical drift of an integrated DCM: ``C - (C C^T - I) C / 2``, the
     first-order step towards the nearest rotation (Savage; exact to O(e^2) for an error e)."""
-    return C - 0.5 * (C @ C.T - np.eye(3)) @ C
+    return C - 0.5 * (C @ C.T - _EYE_3) @ C
 
 
 def dcm_to_quat_wxyz(C: np.ndarray) -> np.ndarray:
     """Unit quaternion (w, x, y, z), w >= 0, of a rotation matrix (Shepperd's method)."""
-    tr = C[0, 0] + C[1, 1] + C[2, 2]
+    return np.array(dcm_to_quat_wxyz_floats(*np.asarray(C, dtype=float).ravel().tolist()))
+
+
+def dcm_to_quat_wxyz_floats(c11: float, c12: float, c13: float, c21: float, c22: float,
+                            c23: float, c31: float, c32: float,
+                            c33: float) -> tuple[float, float, float, float]:
+    """:func:`dcm_to_quat_wxyz` of the matrix entries (row-major), on floats."""
+    tr = c11 + c22 + c33
     if tr > 0.0:
         s = 2.0 * math.sqrt(1.0 + tr)
-        q = np.array([0.25 * s, (C[2, 1] - C[1, 2]) / s, (C[0, 2] - C[2, 0]) / s,
-                      (C[1, 0] - C[0, 1]) / s])
-    elif C[0, 0] > C[1, 1] and C[0, 0] > C[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + C[0, 0] - C[1, 1] - C[2, 2])
-        q = np.array([(C[2, 1] - C[1, 2]) / s, 0.25 * s, (C[0, 1] + C[1, 0]) / s,
-                      (C[0, 2] + C[2, 0]) / s])
-    elif C[1, 1] > C[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + C[1, 1] - C[0, 0] - C[2, 2])
-        q = np.array([(C[0, 2] - C[2, 0]) / s, (C[0, 1] + C[1, 0]) / s, 0.25 * s,
-                      (C[1, 2] + C[2, 1]) / s])
+        q = (0.25 * s, (c32 - c23) / s, (c13 - c31) / s, (c21 - c12) / s)
+    elif c11 > c22 and c11 > c33:
+        s = 2.0 * math.sqrt(1.0 + c11 - c22 - c33)
+        q = ((c32 - c23) / s, 0.25 * s, (c12 + c21) / s, (c13 + c31) / s)
+    elif c22 > c33:
+        s = 2.0 * math.sqrt(1.0 + c22 - c11 - c33)
+        q = ((c13 - c31) / s, (c12 + c21) / s, 0.25 * s, (c23 + c32) / s)
     else:
-        s = 2.0 * math.sqrt(1.0 + C[2, 2] - C[0, 0] - C[1, 1])
-        q = np.array([(C[1, 0] - C[0, 1]) / s, (C[0, 2] + C[2, 0]) / s,
-                      (C[1, 2] + C[2, 1]) / s, 0.25 * s])
-    q /= np.linalg.norm(q)
-    return q if q[0] >= 0.0 else -q
+        s = 2.0 * math.sqrt(1.0 + c33 - c11 - c22)
+        q = ((c21 - c12) / s, (c13 + c31) / s, (c23 + c32) / s, 0.25 * s)
+    w, x, y, z = q
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    if w < 0.0:
+        n = -n
+    return w / n, x / n, y / n, z / n
 
 
 def quat_wxyz_to_dcm(q: np.ndarray) -> np.ndarray:

@@ -8,7 +8,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
+
+try:  # the LAPACK gufuncs behind np.linalg.solve (present in numpy 1.x and 2.x)
+    from numpy.linalg import _umath_linalg as _lapack
+except ImportError:  # pragma: no cover -- then np.linalg.solve itself is used
+    _lapack = None
 
 # Chi-square quantiles for the innovation gate: {dof: {probability: threshold}} (no scipy).
 _CHI2 = {
@@ -50,6 +57,34 @@ class UpdateRecord:
     accepted: bool
 
 
+_IDENTITY: dict[int, np.ndarray] = {}
+
+
+def _identity(n: int) -> np.ndarray:
+    """A read-only ``np.eye(n)``, made once per size."""
+    eye = _IDENTITY.get(n)
+    if eye is None:
+        eye = _IDENTITY[n] = np.eye(n)
+        eye.flags.writeable = False
+    return eye
+
+
+def solve(S: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.linalg.solve(S, b)`` for one square ``S`` and a vector or matrix ``b``.
+
+    The same LAPACK gufunc, called without np.linalg.solve's per-call argument checks and
+    error-state context, which cost several times the solve of these small systems. Any
+    non-finite result (singular or non-finite S) is redone by np.linalg.solve, so it raises
+    LinAlgError exactly where np.linalg.solve would (a singular S, impossible with R > 0,
+    also shows numpy's "invalid value" RuntimeWarning first).
+    """
+    if _lapack is not None:
+        x = (_lapack.solve1 if b.ndim == 1 else _lapack.solve)(S, b)
+        if math.isfinite(float(x.sum())):
+            return x
+    return np.linalg.solve(S, b)
+
+
 def symmetrize(P: np.ndarray) -> np.ndarray:
     """``(P + P^T) / 2``."""
     return 0.5 * (P + P.T)
@@ -71,11 +106,11 @@ def update(P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
     """
     PHt = P @ H.T
     S = symmetrize(H @ PHt + R)
-    nis = float(innovation @ np.linalg.solve(S, innovation))
+    nis = float(innovation @ solve(S, innovation))
     if not nis <= gate:  # also rejects NaN
         return np.zeros(P.shape[0]), P, UpdateRecord(name, innovation, S, nis, False)
-    K = np.linalg.solve(S, PHt.T).T
+    K = solve(S, PHt.T).T
     dx = K @ innovation
-    IKH = np.eye(P.shape[0]) - K @ H
+    IKH = _identity(P.shape[0]) - K @ H
     P_new = symmetrize(IKH @ P @ IKH.T + K @ R @ K.T)
     return dx, P_new, UpdateRecord(name, innovation, S, nis, True)

@@ -73,12 +73,20 @@ class NonHolonomic:
     def __init__(self, planet: Planet, l_bw_b: np.ndarray) -> None:
         self.planet = planet
         self.l_bw_b = np.asarray(l_bw_b, dtype=float)
+        self._skew_l = skew(self.l_bw_b)
 
     def point_velocity_b(self, state: NavState, omega_ib_b: np.ndarray) -> np.ndarray:
         """Velocity of the constrained point resolved in b, m/s."""
-        C_n_b = state.C_b_n.T
-        w_eb_b = omega_ib_b - state.b_g - C_n_b @ earth_rate_n(self.planet, state.llh[0])
-        return C_n_b @ state.v_eb_n + cross(w_eb_b, self.l_bw_b)
+        return self.point_velocity_from_rate_b(state, self.body_rate_b(state, omega_ib_b))
+
+    def body_rate_b(self, state: NavState, omega_ib_b: np.ndarray) -> np.ndarray:
+        """``omega_eb_b``: body rate w.r.t. the planet, bias-corrected, resolved in b, rad/s."""
+        return omega_ib_b - state.b_g - state.C_b_n.T @ earth_rate_n(self.planet, state.llh[0])
+
+    def point_velocity_from_rate_b(self, state: NavState, omega_eb_b: np.ndarray) -> np.ndarray:
+        """:meth:`point_velocity_b` from the body rate w.r.t. the planet (see
+        :meth:`body_rate_b`), m/s."""
+        return state.C_b_n.T @ state.v_eb_n + cross(omega_eb_b, self.l_bw_b)
 
     def innovation(self, state: NavState, omega_ib_b: np.ndarray,
                    rows: tuple[int, ...] = (1, 2)) -> np.ndarray:
@@ -91,5 +99,5 @@ class NonHolonomic:
         H = np.zeros((3, N_ERR))
         H[:, ATT] = -C_n_b @ skew(state.v_eb_n)
         H[:, VEL] = -C_n_b
-        H[:, BG] = skew(self.l_bw_b)
+        H[:, BG] = self._skew_l
         return H[list(rows)]

@@ -16,10 +16,11 @@ noiseless simulator runs against the truth.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
-from slip_estimator.core.planet import Planet, gravity_down, radii_of_curvature
+from slip_estimator.core.planet import Planet
 from slip_estimator.core.state import NavState
 
 
@@ -53,13 +54,33 @@ def mechanize(state: NavState, f_ib_b: np.ndarray, omega_ib_b: np.ndarray, tau_s
     f_ib_n : the bias-corrected specific force resolved in n over the interval, m/s^2 (the
         error-state model needs it, F21).
     """
+    return np.array(mechanize_step(state, f_ib_b.tolist(), omega_ib_b.tolist(), tau_s, planet))
+
+
+def mechanize_step(state: NavState, f_ib_b: Sequence[float], omega_ib_b: Sequence[float],
+                   tau_s: float, planet: Planet) -> tuple[float, float, float]:
+    """:func:`mechanize` on plain floats (the estimator's per-sample path): the measurements
+    as 3-sequences of floats, ``f_ib_n`` returned as a tuple.
+
+    The radii of curvature and the normal gravity are those of :mod:`planet`
+    (``radii_of_curvature``, ``gravity_down``) written out with the planet's cached constants
+    and sharing ``sin L``: the same floating-point operations, without the calls.
+    """
     L, lam, h = state.llh.tolist()
     vN, vE, vD = state.v_eb_n.tolist()
-    fx, fy, fz = (f_ib_b - state.b_a).tolist()
-    wx, wy, wz = ((omega_ib_b - state.b_g) * tau_s).tolist()
+    ba_x, ba_y, ba_z = state.b_a.tolist()
+    bg_x, bg_y, bg_z = state.b_g.tolist()
+    fx, fy, fz = f_ib_b[0] - ba_x, f_ib_b[1] - ba_y, f_ib_b[2] - ba_z
+    wx = (omega_ib_b[0] - bg_x) * tau_s
+    wy = (omega_ib_b[1] - bg_y) * tau_s
+    wz = (omega_ib_b[2] - bg_z) * tau_s
     sL, cL = math.sin(L), math.cos(L)
-    w = planet.omega_ie_rps
-    R_N, R_E = radii_of_curvature(planet, L)
+    w, e2, R0, R0_sq, R_N_num, g_e, k, g_h = planet.strapdown_constants
+    # radii_of_curvature(planet, L) and surface_gravity(planet, L)
+    s2 = sL ** 2
+    d = 1.0 - e2 * s2
+    sqrt_d = math.sqrt(d)
+    R_N, R_E = R_N_num / d ** 1.5, R0 / sqrt_d
     RN, RE = R_N + h, R_E + h
     # Planet rate (Groves 5.41) and transport rate (5.44) in NED.
     ie_N, ie_D = w * cL, -w * sL
@@ -82,8 +103,9 @@ def mechanize(state: NavState, f_ib_b: np.ndarray, omega_ib_b: np.ndarray, tau_s
     fN = 0.5 * ((c11 + n11) * fx + (c12 + n12) * fy + (c13 + n13) * fz)
     fE = 0.5 * ((c21 + n21) * fx + (c22 + n22) * fy + (c23 + n23) * fz)
     fD = 0.5 * ((c31 + n31) * fx + (c32 + n32) * fy + (c33 + n33) * fz)
-    # Gravity and Coriolis + transport terms.
-    gD = gravity_down(planet, L, h)
+    # Gravity (gravity_down(planet, L, h)), Coriolis and transport terms.
+    g0 = g_e * (1.0 + k * s2) / sqrt_d
+    gD = g0 * (1.0 - g_h * h + 3.0 * h * h / R0_sq)
     aN, aE, aD = en_N + 2.0 * ie_N, en_E, en_D + 2.0 * ie_D
     cN = aE * vD - aD * vE
     cE = aD * vN - aN * vD
@@ -92,12 +114,12 @@ def mechanize(state: NavState, f_ib_b: np.ndarray, omega_ib_b: np.ndarray, tau_s
     vN1 = vN + (fN - cN) * tau_s
     vE1 = vE + (fE - cE) * tau_s
     vD1 = vD + (fD + gD - cD) * tau_s
-    # Position (eq. 4-6, corrected).
+    # Position (eq. 4-6, corrected); R_E at the new latitude as in radii_of_curvature.
     h1 = h - 0.5 * tau_s * (vD + vD1)
     L1 = L + 0.5 * tau_s * (vN / RN + vN1 / (R_N + h1))
-    _, R_E1 = radii_of_curvature(planet, L1)
+    R_E1 = R0 / math.sqrt(1.0 - e2 * math.sin(L1) ** 2)
     lam1 = lam + 0.5 * tau_s * (vE / (RE * cL) + vE1 / ((R_E1 + h1) * math.cos(L1)))
-    state.C_b_n = np.array([[n11, n12, n13], [n21, n22, n23], [n31, n32, n33]])
-    state.v_eb_n = np.array([vN1, vE1, vD1])
-    state.llh = np.array([L1, lam1, h1])
-    return np.array([fN, fE, fD])
+    state.C_b_n = np.array((n11, n12, n13, n21, n22, n23, n31, n32, n33)).reshape(3, 3)
+    state.v_eb_n = np.array((vN1, vE1, vD1))
+    state.llh = np.array((L1, lam1, h1))
+    return fN, fE, fD

@@ -14,7 +14,11 @@ never on a wall clock, so a replay is deterministic and equals what the node wou
 Bad input is counted, never raised: each input topic has a ``received`` counter and
 ``rejected`` counters per reason (see :mod:`slip_estimator.ros.convert` for the reasons, plus
 ``non_monotonic`` for IMU stamps that do not increase and ``core_error`` for samples the core
-raised on). Every outgoing message is checked for NaN/Inf and dropped (and counted) if it has any.
+raised on). No outgoing message carries NaN/Inf: odometry and ``/diagnostics`` are checked and
+dropped (and counted) if they have any; the slip messages cannot have any by construction
+(:func:`~slip_estimator.ros.convert.slip_to_diagnostic_array` formats non-finite values as
+'unknown', :func:`~slip_estimator.ros.convert.slip_to_vector3` is built only from a known,
+finite slip), so they skip the check unless the frame name itself reads as a number.
 
 Parameter changes (:meth:`SlipEstimatorAdapter.request_params`) are validated by the caller and
 take effect at the next reset: an IMU stamp jumping back by more than ``RESET_JUMP_BACK_S``
@@ -95,6 +99,7 @@ class SlipEstimatorAdapter:
         self.params = params
         self._core = self._factory(params)
         self._C_imu_b = frames.imu_to_body_dcm(params.imu_to_base_rpy)
+        self._frame_is_finite_text = convert.text_is_finite(params.base_frame)
         self._odom_period_ns = (0 if params.odometry_rate_hz == 0.0
                                 else round(1e9 / params.odometry_rate_hz))
         self._diag_period_ns = round(params.diagnostics_period_s * 1e9)
@@ -168,14 +173,22 @@ class SlipEstimatorAdapter:
         self._track_imu_period(stamp_ns)
         self._last_imu_ns = stamp_ns
 
+        # Most IMU samples produce nothing: the output steps run only when due.
         out: list[Output] = []
         try:
-            out += self._slip_outputs(self._core.add_imu(sample))
+            estimates = self._core.add_imu(sample)
+            if estimates:
+                out = self._slip_outputs(estimates)
         except Exception:  # noqa: BLE001 -- a core failure must not take the node down
             self.rejected[TOPIC_IMU, REASON_CORE_ERROR] += 1
-        out += self._odometry_output(stamp_ns)
-        out += self._diagnostics_output(stamp_ns)
-        return self._guard(out)
+        checked: list[Output] = []
+        if self._next_odom_ns is None or stamp_ns >= self._next_odom_ns:
+            checked += self._odometry_output(stamp_ns)
+        if self._next_diag_ns is None or stamp_ns >= self._next_diag_ns:
+            checked += self._diagnostics_output(stamp_ns)
+        if out:  # counted after the diagnostics are built, like the checked outputs
+            out = self._pass_slip(out)
+        return out + self._guard(checked) if checked else out
 
     def on_joint_states(self, msg: JointState) -> list[Output]:
         """Process one ``sensor_msgs/JointState`` (wheel angular velocities)."""
@@ -201,7 +214,7 @@ class SlipEstimatorAdapter:
         except Exception:  # noqa: BLE001
             self.rejected[topic, REASON_CORE_ERROR] += 1
             return []
-        return self._guard(self._slip_outputs(estimates))
+        return self._pass_slip(self._slip_outputs(estimates))
 
     def count_exception(self, topic: str) -> None:
         """Count an exception the caller caught while handling a message of ``topic``."""
@@ -216,6 +229,15 @@ class SlipEstimatorAdapter:
             vec = convert.slip_to_vector3(est, frame)
             if vec is not None:
                 out.append((TOPIC_SLIP_RATIO, vec))
+        return out
+
+    def _pass_slip(self, out: list[Output]) -> list[Output]:
+        """Slip messages are finite by construction (see the module docstring): counted as
+        published without the check, unless the frame name parses as a non-finite number."""
+        if not self._frame_is_finite_text:
+            return self._guard(out)
+        for topic, _ in out:
+            self.published[topic] += 1
         return out
 
     def _odometry_output(self, stamp_ns: int) -> list[Output]:
