@@ -62,24 +62,34 @@ class WheelTimingMonitor:
     """
 
     def __init__(self, horizon_s: float = 30.0, period_s: float = 10.0,
-                 min_turn_rps: float = 0.05) -> None:
+                 min_turn_rps: float = 0.05, bin_s: float = 0.02) -> None:
         self.horizon_ns = int(horizon_s * 1e9)
         self.period_ns = int(period_s * 1e9)
+        self.bin_ns = int(bin_s * 1e9)
         self.min_turn_rps = min_turn_rps
-        self._imu: deque = deque()     # (stamp ns, yaw rate about body z-down, rad/s)
+        # The yaw rate is kept as means over bin_s (the correlation averages over 0.1 s
+        # anyway): a running sum per IMU sample, one entry per bin.
+        self._sum, self._tsum, self._n, self._bin_start_ns = 0.0, 0, 0, None
+        self._imu: deque = deque()     # (bin centre ns, mean yaw rate about z-down, rad/s)
         self._wheel: deque = deque()   # (stamp ns, v_right - v_left, m/s)
         self._next_ns: int | None = None
         self.lag_s = float('nan')
         self.correlation = float('nan')
 
     def add_imu(self, stamp_ns: int, yaw_rate_frd_rps: float) -> None:
-        self._imu.append((stamp_ns, yaw_rate_frd_rps))
+        if self._bin_start_ns is None:
+            self._bin_start_ns, self._next_ns = stamp_ns, stamp_ns + self.period_ns
+        self._sum += yaw_rate_frd_rps
+        self._tsum += stamp_ns
+        self._n += 1
+        if stamp_ns - self._bin_start_ns < self.bin_ns:
+            return
+        self._imu.append((self._tsum // self._n, self._sum / self._n))
+        self._sum, self._tsum, self._n, self._bin_start_ns = 0.0, 0, 0, stamp_ns
         horizon = stamp_ns - self.horizon_ns
         while self._imu[0][0] < horizon:
             self._imu.popleft()
-        if self._next_ns is None:
-            self._next_ns = stamp_ns + self.period_ns
-        elif stamp_ns >= self._next_ns:
+        if stamp_ns >= self._next_ns:
             self._next_ns = stamp_ns + self.period_ns
             self._estimate()
 
@@ -90,7 +100,7 @@ class WheelTimingMonitor:
             self._wheel.popleft()
 
     def _estimate(self) -> None:
-        if len(self._wheel) < 20 or len(self._imu) < 100:
+        if len(self._wheel) < 20 or len(self._imu) < 20:
             return
         imu = np.array(self._imu, dtype=float)
         wheel = np.array(self._wheel, dtype=float)
@@ -99,4 +109,5 @@ class WheelTimingMonitor:
         t0 = imu[0, 0]
         # z down: a left turn is a negative yaw rate and a positive right - left.
         self.lag_s, self.correlation = best_lag((imu[:, 0] - t0) * 1e-9, -imu[:, 1],
-                                                (wheel[:, 0] - t0) * 1e-9, wheel[:, 1])
+                                                (wheel[:, 0] - t0) * 1e-9, wheel[:, 1],
+                                                step_s=0.01)
