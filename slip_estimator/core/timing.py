@@ -87,7 +87,7 @@ class WheelTimingMonitor:
         self._imu.append((self._tsum // self._n, self._sum / self._n))
         self._sum, self._tsum, self._n, self._bin_start_ns = 0.0, 0, 0, stamp_ns
         horizon = stamp_ns - self.horizon_ns
-        while self._imu[0][0] < horizon:
+        while self._imu and self._imu[0][0] < horizon:
             self._imu.popleft()
         if stamp_ns >= self._next_ns:
             self._next_ns = stamp_ns + self.period_ns
