@@ -141,6 +141,7 @@ class SlipEstimator:
         self._llh0: np.ndarray | None = None
         self._odom_frame: LocalEnu | None = None
         self._history: deque = deque()
+        self._history_shift = 0.0
         self._pending: deque = deque()
         self._last_wheel_ns: int | None = None
         self._last_stale_ns: int | None = None
@@ -426,6 +427,15 @@ class SlipEstimator:
         excess_a = max(0.0, max(var[:3]) - S_ra / dt)
         return S_rg + k * k * excess_g * dt, S_ra + k * k * excess_a * dt, S_bad, S_bgd
 
+    def _correct(self, dx: np.ndarray) -> None:
+        """Close the loop on ``dx``. The forward-speed change is also applied to the recorded
+        history (as a running shift), so a wheel sample that describes an earlier instant
+        (``wheel_latency_s``) is compared with the corrected, not the superseded, estimate."""
+        st = self.state
+        before = float(st.C_b_n[:, 0] @ st.v_eb_n)
+        correct(st, dx)
+        self._history_shift += float(st.C_b_n[:, 0] @ st.v_eb_n) - before
+
     def _apply(self, name: str, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
                channels: tuple[str, ...] | None = None) -> None:
         """One pseudo-measurement update with a soft chi-square gate.
@@ -452,7 +462,7 @@ class SlipEstimator:
         if math.isfinite(rec.nis):
             self.P = P
             self.counters[name] += 1
-            correct(self.state, dx)
+            self._correct(dx)
 
     def _pseudo_measurements(self, stamp_ns: int) -> None:
         p = self.params
@@ -492,7 +502,7 @@ class SlipEstimator:
         vN, vE, vD = st.v_eb_n.tolist()
         v_fwd = (c1 * vN + c2 * vE + c3 * vD) + wy * lz - wz * ly
         history = self._history
-        history.append((stamp_ns, v_fwd, wz))
+        history.append((stamp_ns, v_fwd - self._history_shift, wz))
         horizon = stamp_ns - _HISTORY_NS
         while history[0][0] < horizon:  # never empties: the newest entry is not older
             history.popleft()
@@ -512,7 +522,7 @@ class SlipEstimator:
         t0, v0, y0 = h[lo]
         t1, v1, y1 = h[hi]
         a = 0.0 if t1 == t0 else (stamp_ns - t0) / (t1 - t0)
-        return v0 + a * (v1 - v0), y0 + a * (y1 - y0)
+        return v0 + a * (v1 - v0) + self._history_shift, y0 + a * (y1 - y0)
 
     def covariance(self) -> np.ndarray:
         """Error-state covariance at the time of the last IMU sample (flushes the decimated
@@ -628,7 +638,7 @@ class SlipEstimator:
                 dx, self.P, _ = kalman.update(self.P, np.array([w * (1.0 - self._hold_s) - v_hist]),
                                               self.nhc.jacobian(self.state, (0,)),
                                               np.array([[p.wheel_aid_std ** 2]]))
-                correct(self.state, dx)
+                self._correct(dx)
             return
         z = w * (1.0 - self._hold_s)
         # A slip change moves the rim speed (the wheels speed up in sand, or the body and the
