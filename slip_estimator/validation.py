@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from slip_estimator.core.params import Params
-from slip_estimator.effects import TEST17RUN_WINDOWS
+from slip_estimator.effects import TEST17RUN_WINDOWS, window_factor
 
 COMMAND = 'slip-estimator validate --out docs/validation.md'
 LOGS = ('test17run', 's5t1')
@@ -48,10 +48,6 @@ NS = 1_000_000_000
 DEFAULT_DATA_DIR = Path(__file__).resolve().parents[1].parent / 'shared' / 'data' / 'pathfinder'
 """``<repo>/../shared/data/pathfinder``: the logs are read there, never copied into the repo."""
 
-INJECTION_WINDOWS = TEST17RUN_WINDOWS
-"""(start s, end s after the first IMU sample, wheel-speed factor) on test17run (motion
-5.4-54.6 s): the same injection as the tests (``effects.TEST17RUN_WINDOWS``), every window's
-truth away from a class bound."""
 INJECTION_PATTERNS: tuple[tuple[tuple[float, float, float], ...], ...] = (
     TEST17RUN_WINDOWS,
     ((12.0, 22.0, 1.5), (28.0, 34.0, 3.0), (40.0, 48.0, 1.3)),
@@ -158,7 +154,7 @@ class LogInput:
 
 
 def inject_wheel_slip(in_bag: str | Path, out_bag: str | Path, t0_ns: int,
-                      windows: Sequence[tuple[float, float, float]] = INJECTION_WINDOWS
+                      windows: Sequence[tuple[float, float, float]] = TEST17RUN_WINDOWS
                       ) -> int:
     """Copy a bag, scaling the ``/joint_states`` velocities by a factor inside time windows.
 
@@ -175,11 +171,10 @@ def inject_wheel_slip(in_bag: str | Path, out_bag: str | Path, t0_ns: int,
             if m.topic == '/joint_states':
                 t = (int(m.msg.header.stamp.sec) * NS + int(m.msg.header.stamp.nanosec)
                      - t0_ns) * 1e-9
-                for start, end, factor in windows:
-                    if start <= t < end:
-                        m.msg.velocity = [float(v) * factor for v in m.msg.velocity]
-                        n += 1
-                        break
+                factor = float(window_factor(np.array([t]), windows)[0])
+                if factor != 1.0:
+                    m.msg.velocity = [float(v) * factor for v in m.msg.velocity]
+                    n += 1
             writer.write(m.topic, m.msg, m.log_time_ns)
     return n
 
@@ -814,14 +809,14 @@ def write_figures(study: Study, fig_dir: Path) -> dict[str, Path]:
                     color=_COLORS.get(r.config), label=f'{r.config} estimate')
             for b in (0.2, 0.4, 0.7):
                 ax.axhline(b, color='0.75', lw=0.5)
-            for start, end, f in INJECTION_WINDOWS:
+            for start, end, f in TEST17RUN_WINDOWS:
                 ax.axvspan(start, end, color='0.92', zorder=0)
             ax.set_ylim(-0.3, 1.0)
             ax.set_ylabel('slip')
             ax.legend(fontsize=7, loc='upper right')
             ax.set_xlim(0, 60)
         axs[0, 0].set_title('test17run with injected wheel slip (grey: windows '
-                            + ', '.join(f'x{f}' for _, _, f in INJECTION_WINDOWS) + ')')
+                            + ', '.join(f'x{f}' for _, _, f in TEST17RUN_WINDOWS) + ')')
         axs[-1, 0].set_xlabel('time since log start [s]')
         save(fig, 'injected_slip_test17run')
 
@@ -956,7 +951,7 @@ def nav_table(study: Study, log: str, variant: str, coarse: bool = False) -> lis
 
 def _window_table(study: Study) -> list[str]:
     head = ['config'] + [f'x{f} ({a:.0f}-{b:.0f} s): est / truth' for a, b, f in
-                         INJECTION_WINDOWS] + ['outside windows, driving: est / truth']
+                         TEST17RUN_WINDOWS] + ['outside windows, driving: est / truth']
     rows = []
     for k, r in study.present(RTK_LOG, 'injected'):
         if 'slip_t' not in r.series:
@@ -964,7 +959,7 @@ def _window_table(study: Study) -> list[str]:
         t, e, tr = r.series['slip_t'], r.series['slip_est'], r.series['slip_truth']
         cells = [_label(k)]
         outside = np.isfinite(e) & np.isfinite(tr) & (t > 8.0) & (t < 50.0)
-        for a, b, _f_ in INJECTION_WINDOWS:
+        for a, b, _f_ in TEST17RUN_WINDOWS:
             # Skip the first 2 s of a window: the estimator needs slip_measure_s to see it.
             w = np.isfinite(e) & np.isfinite(tr) & (t >= a + 2.0) & (t < b)
             outside &= ~((t >= a - 0.5) & (t < b + 1.0))
@@ -1148,7 +1143,7 @@ def render_markdown(study: Study, figures: dict[str, Path], md_path: Path,
         '',
         'Injected slip (test17run only, the log with RTK truth): the real IMU and GNSS, the '
         '`/joint_states` velocities multiplied by '
-        + ', '.join(f'x{f} for {a:.0f}-{b:.0f} s' for a, b, f in INJECTION_WINDOWS)
+        + ', '.join(f'x{f} for {a:.0f}-{b:.0f} s' for a, b, f in TEST17RUN_WINDOWS)
         + ' after the first IMU sample (the drive is 5.4-54.6 s), written by '
         '`validation.inject_wheel_slip` through `bagio.read_messages` / `BagWriter`. '
         '**Truth slip = eq. 1 between the scaled rim speed and the RTK forward speed** (exactly '

@@ -156,7 +156,6 @@ class SlipEstimator:
         self._change_count = 0
         self._previous_hold: float | None = None
         self._baseline_s: float | None = None
-        self._hold_since_ns = 0
         self._aided: deque = deque()
         self._anchor: tuple[float, float] | None = None
         self._aid_noise_var = 0.0
@@ -631,11 +630,12 @@ class SlipEstimator:
                     # slip is not settled yet, measure on.
                     del vals[:half]
                     return
-                self._hold_s, self._hold_since_ns = self._measured_slip(w), t
+                self._hold_s = self._measured_slip(w)
                 self.monitor.add_held_slip(self._hold_s)
                 # Anchor the velocity on the new hold now (not gated: where the measurement
                 # snapped, the INS is known to have drifted, it is not an outlier).
-                dx, self.P, _ = kalman.update(self.P, np.array([w * (1.0 - self._hold_s) - v_hist]),
+                innovation = np.array([w * (1.0 - self._hold_s) - v_hist])
+                dx, self.P, _ = kalman.update(self.P, innovation,
                                               self.nhc.jacobian(self.state, (0,)),
                                               np.array([[p.wheel_aid_std ** 2]]))
                 self._correct(dx)
