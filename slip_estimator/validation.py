@@ -568,11 +568,12 @@ def release_scatter(log: Any, params: Params, period_s: float = 3.0, release_s: 
         releases = np.arange(first, t_end, period_s)
 
         class Released(SlipEstimator):
-            def _aid_update(self, z_mps: float, v_hist: float, var: float) -> None:
+            def _aid_update(self, z_mps: float, v_hist: float, var: float,
+                            excluded: bool = True) -> None:
                 t = self.stamp_ns * 1e-9 - t0
                 k = np.searchsorted(releases, t, side='right') - 1
                 if k < 0 or t - releases[k] >= release_s:
-                    super()._aid_update(z_mps, v_hist, var)
+                    super()._aid_update(z_mps, v_hist, var, excluded)
 
         _, _, odo = run_core(params, data, 5, Released)
         t = odo[:, 0] * 1e-9

@@ -162,9 +162,34 @@ def test_history_follows_corrections_for_delayed_wheel_samples():
     p = sim_params(r)
     est, _, _ = run_core_data(p, simulation_data(r, p), odometry_every=10 ** 9)
     past = est.stamp_ns - 100_000_000
-    v_before, _ = est._history_at(past)
+    v_before, _, free_before = est._history_at(past)
     dx = np.zeros(15)
     dx[3:6] = 0.05 * est.state.C_b_n[:, 0]  # velocity error of 5 cm/s along body x
     est._correct(dx)
-    v_after, _ = est._history_at(past)
+    v_after, _, free_after = est._history_at(past)
     assert v_after - v_before == pytest.approx(-0.05, abs=1e-6)
+    assert free_after == free_before  # the past free speed is what the INS said then
+
+
+def test_free_speed_excludes_what_the_wheel_aid_did():
+    """The slip model's free speed must not see a wheel-aid correction (velocity jump, and the
+    along-track acceleration its tilt causes) for a while, but must see other corrections."""
+    import numpy as np
+
+    r = simulate(short_scenario(0))
+    p = sim_params(r)
+    est, _, _ = run_core_data(p, simulation_data(r, p), odometry_every=10 ** 9)
+    dx = np.zeros(15)
+    dx[3:6] = 0.05 * est.state.C_b_n[:, 0]
+    dx[1] = 0.01  # a pitch-like tilt: 0.1 m/s^2 of gravity along the track
+    history = est._history
+    t, _, _, free0 = history[-1]
+    est._correct(dx, aid=True)
+    est._record_history(t + 4_000_000, [0.0, 0.0, 0.0], 0.004)
+    _, _, _, free1 = history[-1]
+    v_fwd = float(est.state.C_b_n[:, 0] @ est.state.v_eb_n)
+    assert free1 - free0 == pytest.approx(0.0, abs=1e-3)  # the aid's jump is taken out
+    assert abs(v_fwd - free1) > 0.04
+    est._correct(dx, aid=False)
+    est._record_history(t + 8_000_000, [0.0, 0.0, 0.0], 0.004)
+    assert history[-1][3] - free1 == pytest.approx(-0.05, abs=2e-3)  # others are seen

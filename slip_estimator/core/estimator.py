@@ -17,13 +17,13 @@ Processing steps for each IMU sample (numbered as in the code):
 
 Beyond the paper: with the paper's pseudo-measurements alone the forward velocity is
 unobservable while driving, and gyro noise and vibration drift it by several cm/s within
-seconds (0.1 m/s per second on the real Pathfinder logs). ``wheel_aid = 'hold'`` measures the
-slip with the unaided INS for ``slip_measure_s`` after motion starts and after every detected
-slip change (short INS intervals are accurate), then holds it and uses the rim speed as
-``r w (1 - s_hold)``: that stops the drift without assuming zero slip, so the reported slip is
-not pulled towards zero. A terrain change shows as a rim speed the body does not follow
-(or the reverse) and starts a new measurement, anchored on velocity continuity and on the
-ground's baseline slip (see ``_wheel_aid_hold``). ``wheel_aid = 'off'`` is the paper's method.
+seconds (0.1 m/s per second on the real Pathfinder logs). ``wheel_aid = 'hold'`` hands each
+wheel sample to the slip model (:mod:`slip_estimator.core.slip_model`), which decides whether
+the rim speed aids the forward velocity as ``r w g(s_hold)`` (the held slip, not zero slip),
+whether the velocity is re-anchored after a slip change it detected on either side (the wheels
+or the body, from the filter's forward speed less the aid's own recent corrections), or
+whether the INS runs free while a new slip is measured. ``wheel_aid = 'off'`` is the paper's
+method.
 """
 from __future__ import annotations
 
@@ -51,6 +51,7 @@ from slip_estimator.core.planet import (
     radii_of_curvature,
 )
 from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
+from slip_estimator.core.slip_model import SlipModel
 from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
 from slip_estimator.core.types import (
@@ -66,9 +67,8 @@ from slip_estimator.core.types import (
 _NS = 1_000_000_000
 _HISTORY_S = 2.0
 _HISTORY_NS = int(_HISTORY_S * _NS)
+_AID_MEMORY_S = 3.0  # how long the slip model's free speed excludes an aid correction
 _MAX_PENDING_WHEEL = 50
-_CHANGE_SAMPLES = 3  # consecutive wheel samples beyond the change threshold
-_ANCHOR_NS = 500_000_000  # aided samples before a slip change that anchor its measurement
 # Odometry covariances. Pose: (position, attitude psi) in odom (ENU) is a signed permutation
 # of (POS, ATT) scaled by 1 / T_r(n)^p, written as indices and signs: rows/cols
 # (E, N, U) <- (lambda, L, h) and (psi_E, psi_N, psi_U) <- (psi_E, psi_N, -psi_D).
@@ -142,6 +142,7 @@ class SlipEstimator:
         self._odom_frame: LocalEnu | None = None
         self._history: deque = deque()
         self._history_shift = 0.0
+        self._aid_v, self._aid_a = 0.0, 0.0
         self._pending: deque = deque()
         self._last_wheel_ns: int | None = None
         self._last_stale_ns: int | None = None
@@ -150,18 +151,7 @@ class SlipEstimator:
         self._recovering_until_ns: int | None = None
         self.nis_mean = {'zupt': float('nan'), 'zaru': float('nan'), 'nhc': float('nan'),
                          'wheel': float('nan')}
-        self._hold_s: float | None = None
-        self._measure_since_ns: int | None = None
-        self._measure_vals: list[float] = []
-        self._change_count = 0
-        self._previous_hold: float | None = None
-        self._baseline_s: float | None = None
-        self._aided: deque = deque()
-        self._anchor: tuple[float, float] | None = None
-        self._aid_noise_var = 0.0
-        self._from_rest = False
-        self._last_rim: float | None = None
-        self._recent_rim: deque = deque()
+        self.slip_model = SlipModel(p)
         self.last_records: list[kalman.UpdateRecord] = []
 
     @property
@@ -199,6 +189,7 @@ class SlipEstimator:
         if dt > self.params.max_imu_gap_s:
             self.counters['imu_gaps'] += 1
             self._event(f'IMU gap of {dt:.2f} s')
+            self.slip_model.interrupt()  # no step test across a hole in the INS
             if self.state is not None and dt > self.params.recovery_gap_s:
                 # Not integrated across: one sample says nothing about minutes of motion.
                 self._recover(sample.stamp_ns, dt, 'IMU gap')
@@ -231,7 +222,7 @@ class SlipEstimator:
                 self._check_filter_health(sample.stamp_ns)
                 if self.state is None:
                     return []
-        self._record_history(sample.stamp_ns, w_l)
+        self._record_history(sample.stamp_ns, w_l, dt)
         # 6. slip
         return self._due_slip()
 
@@ -295,10 +286,8 @@ class SlipEstimator:
         self.P = np.diag(d)
         self._acc_tau, self._acc_f_n, self._acc_n = 0.0, [0.0, 0.0, 0.0], 0
         self._history.clear()
-        self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
-        self._from_rest = False  # the velocity now comes from the rim: not an anchor
-        self._anchor = None
-        self._aided.clear()
+        self._aid_v, self._aid_a = 0.0, 0.0
+        self.slip_model.reset(from_rest=False)  # the velocity now comes from the rim
         self._recovering_until_ns = stamp_ns + int(p.recovery_s * _NS)
         self._next_update_ns = stamp_ns
 
@@ -359,6 +348,7 @@ class SlipEstimator:
         b_g = w - C_b_n.T @ earth_rate_n(self.planet, llh[0])
         self.state = NavState(C_b_n, np.zeros(3), llh, np.zeros(3), b_g)
         # Base_link position at alignment: the origin of odom.
+        self._g_mps2 = float(np.linalg.norm(f))
         self._llh0 = self._base_llh()
         self._odom_frame = LocalEnu(self.planet, self._llh0)
         self.P = self._initial_covariance(f)
@@ -426,17 +416,24 @@ class SlipEstimator:
         excess_a = max(0.0, max(var[:3]) - S_ra / dt)
         return S_rg + k * k * excess_g * dt, S_ra + k * k * excess_a * dt, S_bad, S_bgd
 
-    def _correct(self, dx: np.ndarray) -> None:
+    def _correct(self, dx: np.ndarray, aid: bool = False) -> None:
         """Close the loop on ``dx``. The forward-speed change is also applied to the recorded
         history (as a running shift), so a wheel sample that describes an earlier instant
-        (``wheel_latency_s``) is compared with the corrected, not the superseded, estimate."""
+        (``wheel_latency_s``) is compared with the corrected, not the superseded, estimate.
+        A wheel-aid correction (``aid``) is also recorded for the slip model's free speed."""
         st = self.state
         before = float(st.C_b_n[:, 0] @ st.v_eb_n)
+        if aid:
+            a_before = self._g_mps2 * float(st.C_b_n[2, 0]) - float(st.b_a[0])
         correct(st, dx)
-        self._history_shift += float(st.C_b_n[:, 0] @ st.v_eb_n) - before
+        change = float(st.C_b_n[:, 0] @ st.v_eb_n) - before
+        self._history_shift += change
+        if aid:
+            self._aid_v += change
+            self._aid_a += self._g_mps2 * float(st.C_b_n[2, 0]) - float(st.b_a[0]) - a_before
 
     def _apply(self, name: str, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
-               channels: tuple[str, ...] | None = None) -> None:
+               channels: tuple[str, ...] | None = None, excluded: bool = False) -> None:
         """One pseudo-measurement update with a soft chi-square gate.
 
         A constraint the rover's physics guarantees is never thrown away; an innovation beyond
@@ -461,7 +458,7 @@ class SlipEstimator:
         if math.isfinite(rec.nis):
             self.P = P
             self.counters[name] += 1
-            self._correct(dx)
+            self._correct(dx, aid=excluded)
 
     def _pseudo_measurements(self, stamp_ns: int) -> None:
         p = self.params
@@ -490,7 +487,7 @@ class SlipEstimator:
                         self.nhc.jacobian(self.state, rows), R, tuple(names[r] for r in rows))
 
     # ------------------------------------------------------------------ slip
-    def _record_history(self, stamp_ns: int, w_b: list[float]) -> None:
+    def _record_history(self, stamp_ns: int, w_b: list[float], dt: float) -> None:
         # Forward component of NonHolonomic.point_velocity_b, in scalars (runs at IMU rate;
         # the planet-rate part of the lever-arm term, < 3e-5 m/s, is left out).
         st = self.state
@@ -500,14 +497,21 @@ class SlipEstimator:
         c1, c2, c3 = st.C_b_n[:, 0].tolist()
         vN, vE, vD = st.v_eb_n.tolist()
         v_fwd = (c1 * vN + c2 * vE + c3 * vD) + wy * lz - wz * ly
+        # The slip model's free forward speed: the filter's, less what the wheel aid did to it
+        # recently (its velocity jumps, and the along-track acceleration its attitude and
+        # accelerometer-bias corrections cause, forgotten over _AID_MEMORY_S), so the aid
+        # cannot hide a slip step from the detector by tilting the INS.
+        self._aid_v += self._aid_a * dt
+        self._aid_a *= 1.0 - dt / _AID_MEMORY_S
         history = self._history
-        history.append((stamp_ns, v_fwd - self._history_shift, wz))
+        history.append((stamp_ns, v_fwd - self._history_shift, wz, v_fwd - self._aid_v))
         horizon = stamp_ns - _HISTORY_NS
         while history[0][0] < horizon:  # never empties: the newest entry is not older
             history.popleft()
 
-    def _history_at(self, stamp_ns: int) -> tuple[float, float] | None:
-        """Forward speed and yaw rate (FRD) at ``stamp_ns`` by linear interpolation."""
+    def _history_at(self, stamp_ns: int) -> tuple[float, float, float] | None:
+        """Forward speed, yaw rate (FRD) and the slip model's free forward speed (see
+        :meth:`_record_history`) at ``stamp_ns``, by linear interpolation."""
         h = self._history
         if not h or stamp_ns < h[0][0] or stamp_ns > h[-1][0]:
             return None
@@ -518,10 +522,10 @@ class SlipEstimator:
                 lo = mid
             else:
                 hi = mid
-        t0, v0, y0 = h[lo]
-        t1, v1, y1 = h[hi]
+        t0, v0, y0, f0 = h[lo]
+        t1, v1, y1, f1 = h[hi]
         a = 0.0 if t1 == t0 else (stamp_ns - t0) / (t1 - t0)
-        return v0 + a * (v1 - v0) + self._history_shift, y0 + a * (y1 - y0)
+        return v0 + a * (v1 - v0) + self._history_shift, y0 + a * (y1 - y0), f0 + a * (f1 - f0)
 
     def covariance(self) -> np.ndarray:
         """Error-state covariance at the time of the last IMU sample (flushes the decimated
@@ -545,18 +549,19 @@ class SlipEstimator:
             if at is None:
                 self.counters['wheel_late'] += 1
                 continue
-            v_hist, yaw_rate_b = at
+            v_hist, yaw_rate_b, v_raw = at
             if self._recovering(wheel.stamp_ns):
                 # Re-anchor the velocity on the wheels (zero slip assumed, so slip is unknown).
                 if self.params.wheel_aid != 'off' and not self.is_turning:
                     w = wheel.rim_speed_mps
-                    self._aid_update(w, v_hist, self.params.wheel_aid_std ** 2 + (0.1 * w) ** 2)
+                    self._aid_update(w, v_hist, self.params.wheel_aid_std ** 2 + (0.1 * w) ** 2,
+                                     excluded=False)
                 out.append(self._unknown(wheel.stamp_ns, wheel.rim_speed_mps))
                 continue
             est = self._slip(wheel, v_hist, yaw_rate_b)
             out.append(est)
             if self.params.wheel_aid == 'hold':
-                self._wheel_aid_hold(wheel, v_hist, est)
+                self._apply_slip_model(wheel, v_hist, v_raw, est)
         out.extend(self._stale_check())
         return out
 
@@ -568,150 +573,34 @@ class SlipEstimator:
             return False
         return True
 
-    def _wheel_aid_hold(self, wheel: WheelSample, v_hist: float, est: SlipEstimate) -> None:
-        """Piecewise-constant slip aid: measure, hold, watch for the next change.
-
-        MEASURE: for ``slip_measure_s`` of steady rim speed after motion starts or after a
-        detected change, the INS alone measures the slip (longer if the body is still speeding
-        up or slowing down). HOLD: the measured slip is held and the rim speed aids the forward
-        velocity as ``r w (1 - s_hold)``, which stops the INS drift without assuming zero slip.
-        A change of the terrain moves the rim speed relative to the body: when the innovation
-        exceeds ``slip_change_fraction`` of the rim speed on three samples in a row and the rim
-        speed itself moved within the last two seconds, the filter goes back to MEASURE (a
-        discrepancy on a steady rim speed is INS drift, which the aid corrects).
-
-        What a measurement settles on (:meth:`_measured_slip`), measured on the real
-        Pathfinder logs, where the unaided INS velocity scatters by ~0.05 m/s (1 sigma) within
-        half a second of release against 0.02 m/s aided:
-
-        * from rest, the median INS slip: the velocity is anchored on the stop's ZUPT;
-        * after a change, velocity continuity: the held model's velocity before the change
-          plus the INS velocity change across it, where a change below
-          ``slip_continuity_sigma`` times the measured aid-innovation spread is taken as none
-          (a wheel-speed step the body does not follow);
-        * a result within the change threshold of the previous hold is a false alarm; with
-          ``slip_baseline = 'snap'`` one within the threshold of the slip measured after the
-          last start (the ground's baseline) is that ground again, which ends the chain of
-          INS errors from one episode to the next.
-
-        The velocity is then re-anchored on the held value at once (the drift is known)."""
-        p = self.params
+    def _apply_slip_model(self, wheel: WheelSample, v_hist: float, v_raw: float,
+                          est: SlipEstimate) -> None:
+        """Let the slip model (:mod:`slip_estimator.core.slip_model`) decide the wheel aid."""
         w = wheel.rim_speed_mps
-        t = wheel.stamp_ns
-        if est.slip_class <= 0 or abs(w) < p.moving_speed_threshold:
-            self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
-            self._previous_hold, self._anchor = None, None
-            self._aided.clear()
-            self._from_rest = True
+        moving = est.slip_class > 0 and abs(w) >= self.params.moving_speed_threshold
+        pitch_rad = -math.asin(max(-1.0, min(1.0, float(self.state.C_b_n[2, 0]))))
+        d = self.slip_model.step(wheel.stamp_ns, w, v_hist, v_raw, moving, self.is_turning,
+                                 pitch_rad)
+        if d is None:
             return
-        steady = self._last_rim is not None and abs(w - self._last_rim) <= 0.05 * abs(w) + 0.01
-        self._last_rim = w
-        recent = self._recent_rim
-        recent.append((t, w))
-        while recent and recent[0][0] < t - 2 * _NS:
-            recent.popleft()
-        if self._hold_s is None:
-            # Measure on steady driving only: while the speed changes, the encoder speed
-            # (a count difference) lags the body and would bias the held slip.
-            if self.is_turning or not steady:
-                self._measure_since_ns = None
-                return
-            if self._measure_since_ns is None:
-                self._measure_since_ns, self._measure_vals = t, []
-            vals = self._measure_vals
-            vals.append((est.slip_ratio, v_hist, w))
-            if t - self._measure_since_ns >= int(p.slip_measure_s * _NS):
-                half = len(vals) // 2
-                dv = (sum(v[1] for v in vals[half:]) / (len(vals) - half)
-                      - sum(v[1] for v in vals[:half]) / max(half, 1))
-                if abs(dv) > max(0.02, 2.0 * math.sqrt(self._aid_noise_var)) and \
-                        t - self._measure_since_ns < int(5 * p.slip_measure_s * _NS):
-                    # The body is still speeding up or slowing down (leaving sand, say): the
-                    # slip is not settled yet, measure on.
-                    del vals[:half]
-                    return
-                self._hold_s = self._measured_slip(w)
-                self.monitor.add_held_slip(self._hold_s)
-                # Anchor the velocity on the new hold now (not gated: where the measurement
-                # snapped, the INS is known to have drifted, it is not an outlier).
-                innovation = np.array([w * (1.0 - self._hold_s) - v_hist])
-                dx, self.P, _ = kalman.update(self.P, innovation,
-                                              self.nhc.jacobian(self.state, (0,)),
-                                              np.array([[p.wheel_aid_std ** 2]]))
-                self._correct(dx)
+        if d.held_slip is not None:
+            self.monitor.add_held_slip(d.held_slip)
+        if d.anchor:
+            # A known jump of the INS error (a change, or a settled measurement): not gated.
+            dx, self.P, _ = kalman.update(self.P, np.array([d.z_mps - v_hist]),
+                                          self.nhc.jacobian(self.state, (0,)),
+                                          np.array([[d.var_mps2]]))
+            self._correct(dx, aid=not d.repair)
             return
-        z = w * (1.0 - self._hold_s)
-        # A slip change moves the rim speed (the wheels speed up in sand, or the body and the
-        # wheels slow together in an uphill). A discrepancy on a steady rim speed is INS drift,
-        # which the aid itself corrects.
-        rim_moved = max(abs(w - wk) for _, wk in recent) > 0.5 * self._change_mps(w)
-        if abs(z - v_hist) > self._change_mps(w) and rim_moved:
-            self._change_count += 1
-            if self._change_count >= _CHANGE_SAMPLES:
-                self._previous_hold = self._hold_s
-                aided = self._aided
-                self._anchor = (sum(a[1] for a in aided) / len(aided),
-                                sum(a[2] for a in aided) / len(aided)) if aided else None
-                aided.clear()
-                self._hold_s, self._measure_since_ns, self._change_count = None, None, 0
-                self._event('slip change detected: measuring')
-            return
-        self._change_count = 0
-        # Consistency noise of INS and wheels (vibration, encoder quantisation, body pitching):
-        # an EMA of the squared aid innovation, the scale of an INS velocity change the hold
-        # mode cannot tell from noise.
-        self._aid_noise_var += (0.02 if self._aid_noise_var else 1.0) * (
-            (z - v_hist) ** 2 - self._aid_noise_var)
-        aided = self._aided
-        aided.append((t, z, v_hist))
-        while aided[0][0] < t - _ANCHOR_NS:
-            aided.popleft()
-        if not steady:
-            # Speeding up or braking, the slip of a skid-steer rover is not the cruise slip
-            # held (it goes to 0 or 1 near a stop), and the INS is good over the few tenths
-            # of a second a speed change takes: no aid.
-            return
-        # Turning, the wheels also skid sideways: the held slip is a looser constraint.
-        self._aid_update(z, v_hist, p.wheel_aid_std ** 2 * (4.0 if self.is_turning else 1.0))
+        self._aid_update(d.z_mps, v_hist, d.var_mps2, excluded=not d.repair)
 
-    def _measured_slip(self, w: float) -> float:
-        """The slip a finished measurement settles on (see :meth:`_wheel_aid_hold`)."""
-        p = self.params
-        vals = self._measure_vals
-        if self._anchor is None:  # from rest (ZUPT-anchored) or after a recovery
-            measured = float(np.median([v[0] for v in vals]))
-        else:
-            # Velocity continuity from the held model before the change: the INS gives only
-            # the velocity change over the short unaided interval, and a change within its
-            # noise (slip_continuity_sigma times the measured aid-innovation spread) is taken
-            # as none.
-            z_before, v_before = self._anchor
-            dv = sum(v[1] for v in vals) / len(vals) - v_before
-            if abs(dv) < p.slip_continuity_sigma * math.sqrt(self._aid_noise_var):
-                dv = 0.0
-            measured = slip_ratio(z_before + dv, sum(v[2] for v in vals) / len(vals))
-        self._anchor = None
-        previous, baseline = self._previous_hold, self._baseline_s
-        if self._from_rest:
-            self._baseline_s, self._from_rest = measured, False
-        elif previous is not None and abs(measured - previous) * abs(w) < self._change_mps(w):
-            measured = previous  # a false alarm: the INS confirms the held slip
-        elif (baseline is not None and p.slip_baseline == 'snap'
-              and abs(measured - baseline) * abs(w) < self._change_mps(w)):
-            # Back on ordinary ground: the slip measured after the last start, anchored on the
-            # zero velocity at rest, is more accurate than a chain of INS intervals.
-            measured = baseline
-        return measured
-
-    def _change_mps(self, w: float) -> float:
-        """Speed discrepancy that signals a slip change at rim speed ``w``."""
-        return max(self.params.slip_change_fraction * abs(w), 2.0 * self.params.wheel_aid_std)
-
-    def _aid_update(self, z_mps: float, v_hist: float, var: float) -> None:
+    def _aid_update(self, z_mps: float, v_hist: float, var: float,
+                    excluded: bool = True) -> None:
         """Forward-velocity update of the base point with the aid value ``z_mps`` at the wheel
-        sample time (``v_hist`` is the INS value then)."""
+        sample time (``v_hist`` is the INS value then); ``excluded``: the slip model's free
+        speed does not see it."""
         self._apply('wheel', np.array([z_mps - v_hist]), self.nhc.jacobian(self.state, (0,)),
-                    np.array([[var]]))
+                    np.array([[var]]), excluded=excluded)
 
     def _slip(self, wheel: WheelSample, v_body: float, yaw_rate_b: float) -> SlipEstimate:
         p = self.params

@@ -1,0 +1,390 @@
+"""The slip model: which part of a wheel/IMU speed discrepancy is slip, and which is INS error.
+
+Physics. The wheel sample gives the rim speed ``w = r omega``; the strapdown INS gives the
+body's forward speed ``v``. Three things make them disagree, and they differ in time:
+
+* **slip changes are steps.** A rover's motor controllers hold the commanded wheel rate: in
+  soft sand the wheels keep turning and the body slows, downhill it runs ahead, and the IMU
+  sees that as a deceleration (acceleration) lasting 0.5-3 s. The same terrain change can also
+  show as wheels spinning up at an unchanged body speed, which the encoders see. Either way the
+  *free residual* ``rho = v_ins - g(s) w`` (``g(s) = v / w`` of the held slip) moves by
+  ``w * delta_s`` within a few seconds and stays there;
+* **INS error is a slow random walk**: vibration, tilt and bias errors integrate into the
+  velocity with a spread that grows like sqrt(T) and no preferred sign (measured on the real
+  Pathfinder logs: ~0.04-0.05 m/s within a second of release, no mean drift);
+* **wheel noise is white** (encoder quantisation, body pitching): it averages out over a few
+  samples.
+
+So the detector looks at the free residual of the *uncorrected* INS (the filter's own velocity
+corrections removed, so the wheel aid cannot hide a change from it), smoothed over
+``_SMOOTH_S``, and runs a two-sided CUSUM (Page) on its increments with a drift allowance
+``kappa``: a slow common divergence is absorbed by the allowance, a step larger than the
+threshold ``h`` is a slip change whichever side it shows on. For a random walk of spread
+``sigma`` per sqrt(s) the chance that the CUSUM crosses ``h`` in one renewal is
+``exp(-2 kappa h / sigma^2)``; ``kappa`` is set so that this is ``_FALSE_ALARM`` with the
+spread measured online, and ``h`` is the larger of a fraction of the rim speed (half a slip
+class at most), a multiple of the measured spread and twice the wheel-aid noise.
+
+Modes (:class:`Mode`):
+
+* ``REST``: not moving. The ZUPT anchors the velocity; the next start is measured from it;
+* ``MEASURE``: after a start or a detected change the INS runs free (no wheel aid) until the
+  body has settled; a change is anchored at once on velocity continuity (the held model's speed
+  at the onset plus the INS speed change since), so the filter velocity is right while the
+  change is still going on. The settled slip is then held: after a start from rest it is the
+  ground's baseline; one within the change threshold of the previous hold is a false alarm;
+  with ``slip_baseline = 'snap'`` one within it of the baseline is that ground again (this
+  ends a chain of INS errors from one change to the next, measured on the real logs);
+* ``TRACK``: the held slip turns the rim speed into a forward-speed aid ``g(s_hold) w`` that
+  stops the INS drift without assuming zero slip, while the CUSUM watches for the next step.
+  No aid while the rim speed changes (encoder lag) or while a step is building up.
+
+Where it fails (assumptions): a slip that changes slowly (over tens of seconds, e.g. a long
+gradual slope) is indistinguishable from INS drift and is absorbed; a slip change smaller than
+``h`` (``slip_change_fraction`` of the rim speed) is not seen; a change while turning hard is
+measured by a worse INS (turns raise ``h``); a wheel-radius error is a constant slip.
+
+The model returns decisions (:class:`AidDecision`); the estimator applies them to its filter.
+Only the standard library is used.
+"""
+from __future__ import annotations
+
+import enum
+import math
+from collections import deque
+from dataclasses import dataclass
+
+from slip_estimator.core.params import Params
+from slip_estimator.core.slip import slip_ratio
+
+_NS = 1_000_000_000
+_SMOOTH_S = 0.5
+"""Averaging time of the free residual: white wheel noise (10 Hz quantisation, pitching) falls
+by sqrt(n), a slip transition (>= 0.5 s) is barely blurred."""
+_SCALES_S = (1.0, 2.5)
+"""Time scales of the step test: a slip transition of 0.5-3 s shows fully in one of them,
+while the INS random walk grows only like sqrt(T)."""
+_MEMORY_S = 4.0
+"""Samples kept: the smoothing and spread horizons plus a slow transition before an alarm."""
+_MEASURE_TIMEOUT_FACTOR = 5.0
+"""After this many ``slip_measure_s`` a measurement settles even if the body still moves."""
+_TURN_THRESHOLD_FACTOR = 1.5
+"""The INS is worse in turns (lever arm, skid): the body-side threshold is raised by this."""
+_STEADY_FRACTION = 0.05
+"""Rim speed steady: it moved by less than this fraction (plus 1 cm/s) since the last sample."""
+_WHEEL_CHANGE_SAMPLES = 3
+"""Consecutive samples of a wheel-side discrepancy that make a change (not one noisy sample)."""
+_RIM_MEMORY_S = 2.0
+"""A wheel-side change needs the rim speed to have moved within this long."""
+_RUN_AHEAD_PITCH_RAD = math.radians(2.0)
+"""Nose-down pitch below which a body running ahead of its wheels is physically possible
+(gravity along the slope beating the rolling resistance of soft ground)."""
+_QUIET_AFTER_GAP_S = 4.0
+"""After an IMU gap the filter settles its attitude and biases for a few seconds (and the free
+speed excludes the aid's corrections for ``_AID_MEMORY_S``): no body-side step test then."""
+_STOP_S = 0.5
+"""Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
+_ANCHOR_S = 0.5
+"""Aided samples before a change whose mean anchors its continuity measurement."""
+
+
+class Mode(enum.Enum):
+    REST = 'rest'
+    MEASURE = 'measure'
+    TRACK = 'track'
+
+
+@dataclass(frozen=True, slots=True)
+class AidDecision:
+    """What the filter should do with this wheel sample's forward speed.
+
+    z_mps : forward speed of the base point to update towards, m/s.
+    var_mps2 : its variance, m^2/s^2.
+    anchor : True for a re-anchor (a known jump of the INS error: not gated), False for the
+        ordinary aid (gated like every pseudo-measurement).
+    held_slip : the slip just settled on (for the residual monitor), or None.
+    repair : True when the update repairs INS damage (after an IMU gap) rather than holding a
+        slip: the free speed then keeps its effect (the step test must see the repaired INS).
+    """
+
+    z_mps: float
+    var_mps2: float
+    anchor: bool = False
+    held_slip: float | None = None
+    repair: bool = False
+
+
+def speed_ratio(s: float) -> float:
+    """``g(s) = v / (r w)`` of a slip ratio (eq. 1 solved for the body speed)."""
+    return 1.0 - s if s >= 0.0 else 1.0 / (1.0 + s)
+
+
+class SlipModel:
+    """Slip change detection on both sides and wheel-aid decisions (see the module docstring).
+
+    ``step`` takes one wheel sample: rim speed ``w``, the filter's forward speed ``v`` and the
+    free forward speed ``v_free`` (the filter's, less the wheel aid's recent corrections) at the
+    wheel time, and returns the aid to apply or None.
+    """
+
+    def __init__(self, params: Params) -> None:
+        self.params = params
+        # Prior spread: twice the aid noise per sqrt(s) (a random walk).
+        self.spread_var = [(2.0 * params.wheel_aid_std) ** 2 * t for t in _SCALES_S]
+        self.aid_noise_var = 0.0
+        self.changes = {'wheel': 0, 'body': 0}
+        self.baseline: float | None = None
+        self._reset()
+
+    def _reset(self) -> None:
+        self.mode = Mode.REST
+        self.slip_hold: float | None = None
+        self._previous: float | None = None
+        self._anchor: tuple[float, float, bool] | None = None  # (model v, INS v, free INS?)
+        self._measure_since_ns: int | None = None
+        self._vals: list[tuple[float, float, float, float]] = []
+        self._change_count = 0
+        self._last_w: float | None = None
+        self._recent_w: deque = deque()
+        self._aided: deque = deque()  # (t, z, v, v_free) while tracking
+        self._free: deque = deque()  # (t, rho) free residual while tracking
+        self._smooth: deque = deque()  # (t, smoothed free residual) while tracking
+        self._stopped_since_ns: int | None = None
+        self._last_t_ns = 0
+        self._pitch_rad = 0.0
+        self._reanchor = False
+        self._quiet_until_ns = 0
+
+    def reset(self, from_rest: bool) -> None:
+        """Forget the held slip: a stop (``from_rest``: the next start is ZUPT-anchored) or a
+        velocity re-initialised after a fault (not an anchor)."""
+        self._reset()
+        self._from_rest = from_rest
+
+    def interrupt(self) -> None:
+        """The INS went through a gap: its speed change across it says nothing about slip, so
+        the step test and a running measurement start afresh (the held slip is kept)."""
+        self._free.clear()
+        self._smooth.clear()
+        self._aided.clear()
+        self._measure_since_ns = None
+        self._reanchor = True  # what the INS integrated across the gap is not the body's
+
+    # ------------------------------------------------------------------ the step
+    def step(self, t_ns: int, w: float, v: float, v_free: float, moving: bool,
+             turning: bool, pitch_rad: float = 0.0) -> AidDecision | None:
+        self._last_t_ns = t_ns
+        self._pitch_rad = pitch_rad
+        if not moving:
+            stopped_since = self._stopped_since_ns
+            self.reset(from_rest=True)
+            if abs(w) >= self.params.moving_speed_threshold:
+                return None
+            self._stopped_since_ns = t_ns if stopped_since is None else stopped_since
+            if t_ns - self._stopped_since_ns < int(_STOP_S * _NS):
+                return None
+            # Wheels held still: the body is at rest unless it slides, which the gate catches.
+            # This anchors the next start even where a vibrating IMU keeps the ZUPT off.
+            return AidDecision(0.0, (2.0 * self.params.wheel_aid_std) ** 2)
+        steady = self._last_w is not None and \
+            abs(w - self._last_w) <= _STEADY_FRACTION * abs(w) + 0.01
+        self._last_w = w
+        recent = self._recent_w
+        recent.append((t_ns, w))
+        while recent[0][0] < t_ns - int(_RIM_MEMORY_S * _NS):
+            recent.popleft()
+        if self.slip_hold is None:
+            self.mode = Mode.MEASURE
+            return self._measure(t_ns, w, v, v_free, steady, turning)
+        return self._track(t_ns, w, v, v_free, steady, turning)
+
+    # ------------------------------------------------------------------ measuring
+    def _measure(self, t_ns: int, w: float, v: float, v_free: float, steady: bool,
+                 turning: bool) -> AidDecision | None:
+        """The INS runs free until the body has settled (measured on steady driving only:
+        while the speed changes, the encoder speed, a count difference, lags the body)."""
+        p = self.params
+        if turning or not steady:
+            self._measure_since_ns = None
+            return None
+        if self._measure_since_ns is None:
+            self._measure_since_ns, self._vals = t_ns, []
+        vals = self._vals
+        vals.append((slip_ratio(v, w), v, w, v_free))
+        if t_ns - self._measure_since_ns < int(p.slip_measure_s * _NS):
+            return None
+        body = self._anchor is not None and self._anchor[2]
+        half = len(vals) // 2
+        k = 3 if body else 1
+        dv = (sum(x[k] for x in vals[half:]) / (len(vals) - half)
+              - sum(x[k] for x in vals[:half]) / max(half, 1))
+        if abs(dv) > max(0.02, 2.0 * math.sqrt(self.aid_noise_var)) and \
+                t_ns - self._measure_since_ns < int(_MEASURE_TIMEOUT_FACTOR * p.slip_measure_s
+                                                    * _NS):
+            # The body is still speeding up or slowing down (entering or leaving sand):
+            # the slip is not settled yet, measure on.
+            del vals[:half]
+            return None
+        measured = self._settle(w)
+        self.slip_hold, self.mode = measured, Mode.TRACK
+        self._free.clear()
+        self._smooth.clear()
+        # Anchor the velocity on the new hold now (not gated: where the measurement snapped,
+        # the INS is known to have drifted, it is not an outlier).
+        return AidDecision(speed_ratio(measured) * w, p.wheel_aid_std ** 2, anchor=True,
+                           held_slip=measured)
+
+    def _settle(self, w: float) -> float:
+        """The slip a finished measurement settles on.
+
+        From rest (ZUPT-anchored) or after a recovery: the median INS slip. After a change:
+        velocity continuity from the held model before it, plus the INS speed change across
+        it (the free INS for a body-side change, whose onset the aid had already pulled at),
+        a change within ``slip_continuity_sigma`` of the measured aid noise taken as none."""
+        p = self.params
+        vals = self._vals
+        if self._anchor is None:
+            measured = sorted(x[0] for x in vals)[len(vals) // 2]
+        else:
+            z_before, v_before, free = self._anchor
+            k = 3 if free else 1
+            dv = sum(x[k] for x in vals) / len(vals) - v_before
+            if abs(dv) < p.slip_continuity_sigma * math.sqrt(self.aid_noise_var):
+                dv = 0.0
+            measured = slip_ratio(z_before + dv, sum(x[2] for x in vals) / len(vals))
+        self._anchor = None
+        previous, baseline = self._previous, self.baseline
+        h = self.wheel_change_mps(w)
+        if (not self._from_rest and baseline is not None and measured * abs(w) < -h
+                and self._pitch_rad > -_RUN_AHEAD_PITCH_RAD):
+            # The body cannot run ahead of wheels held at a steady rate on level or rising
+            # ground (that takes a downhill pull): the INS says so only when it missed the
+            # start of a slowdown it now sees end, or drifted. Back to the ground's baseline.
+            measured = baseline
+        if self._from_rest:
+            self.baseline, self._from_rest = measured, False
+        elif previous is not None and abs(measured - previous) * abs(w) < h:
+            measured = previous  # a false alarm: the INS confirms the held slip
+        elif (baseline is not None and p.slip_baseline == 'snap'
+              and abs(measured - baseline) * abs(w) < h):
+            # Back on ordinary ground: the slip measured after the last start, anchored on the
+            # zero velocity at rest, is more accurate than a chain of INS intervals.
+            measured = baseline
+        return measured
+
+    # ------------------------------------------------------------------ tracking
+    def wheel_change_mps(self, w: float) -> float:
+        """Aid innovation that signals a wheel-side slip change at rim speed ``w``, m/s."""
+        p = self.params
+        return max(p.slip_change_fraction * abs(w), 2.0 * p.wheel_aid_std)
+
+    def body_change_mps(self, w: float, turning: bool = False) -> float:
+        """CUSUM threshold h of a body-side change at rim speed ``w``, m/s: the wheel-side
+        threshold, or ``slip_change_sigma`` times the measured 1-s spread of the free residual
+        if larger (raised while turning)."""
+        h = max(self.wheel_change_mps(w),
+                self.params.slip_change_sigma * math.sqrt(self.spread_var[0]))
+        return h * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
+
+    def _track(self, t_ns: int, w: float, v: float, v_free: float, steady: bool,
+               turning: bool) -> AidDecision | None:
+        p = self.params
+        g = speed_ratio(self.slip_hold)
+        z = g * w
+        if self._reanchor:
+            self._reanchor = False
+            self._quiet_until_ns = t_ns + int(_QUIET_AFTER_GAP_S * _NS)
+            return AidDecision(z, p.wheel_aid_std ** 2, anchor=True, repair=True)
+        quiet = t_ns < self._quiet_until_ns
+        # Wheel side: the rim speed moved and the body did not follow (or the reverse).
+        # The rim must have moved by at least half the discrepancy it is to explain (encoder
+        # noise moves it too; a body-side change leaves it where it was).
+        gap = abs(z - v)
+        rim_moved = max(abs(w - wk) for _, wk in self._recent_w) * g > 0.5 * gap
+        if gap > self.wheel_change_mps(w) and rim_moved:
+            self._change_count += 1
+            if self._change_count >= _WHEEL_CHANGE_SAMPLES:
+                a = self._aided
+                a = [x for x in a if x[0] >= t_ns - int(_ANCHOR_S * _NS)]
+                anchor = (sum(x[1] for x in a) / len(a), sum(x[2] for x in a) / len(a), False) \
+                    if a else None
+                self._start_change(anchor, 'wheel')
+            return None
+        self._change_count = 0
+        # Body side: a step of the free residual (CUSUM with the INS drift allowance).
+        onset_ns = self._body_step(t_ns, w, v_free - z, turning)
+        if quiet:
+            onset_ns = None
+        if onset_ns is not None:
+            before = [x for x in self._aided if onset_ns - int(_ANCHOR_S * _NS) <= x[0] <= onset_ns]
+            before = before or list(self._aided)[:1]
+            if before:
+                z0 = sum(x[1] for x in before) / len(before)
+                f0 = sum(x[3] for x in before) / len(before)
+                self._start_change((z0, f0, True), 'body')
+                # Re-anchor now: the aid had been pulling the INS back onto the old slip.
+                return AidDecision(z0 + v_free - f0, p.wheel_aid_std ** 2, anchor=True)
+        # Consistency noise of INS and wheels (vibration, encoder quantisation, pitching).
+        self.aid_noise_var += (0.02 if self.aid_noise_var else 1.0) * (
+            (z - v) ** 2 - self.aid_noise_var)
+        a = self._aided
+        a.append((t_ns, z, v, v_free))
+        if not steady:
+            # Speeding up or braking, the slip of a skid-steer rover is not the cruise slip
+            # held, and the INS is good over the few tenths of a second it takes: no aid.
+            # (A step building up is aided on: the detector reads the free speed, and a free
+            # INS on the real rover drifts by more than the steps it would wait for.)
+            return None
+        # Turning, the wheels also skid sideways: the held slip is a looser constraint.
+        return AidDecision(z, p.wheel_aid_std ** 2 * (4.0 if turning else 1.0), repair=quiet)
+
+    def _body_step(self, t_ns: int, w: float, rho: float, turning: bool) -> int | None:
+        """Multi-scale step test on the smoothed free residual: its change over each scale
+        ``T`` of ``_SCALES_S`` against ``slip_change_sigma`` times its spread at that scale
+        (learned online, robustly). Returns the onset time on an alarm."""
+        free = self._free
+        free.append((t_ns, rho))
+        while free[0][0] < t_ns - int((_SCALES_S[-1] + _SMOOTH_S) * _NS):
+            free.popleft()
+        rho_s = self._smoothed(t_ns)
+        self._smooth.append((t_ns, rho_s))
+        while self._smooth[0][0] < t_ns - int(_SCALES_S[-1] * _NS) - _NS // 10:
+            self._smooth.popleft()
+        k = self.params.slip_change_sigma * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
+        alarm = None
+        for i, scale_s in enumerate(_SCALES_S):
+            t_then = t_ns - int(scale_s * _NS)
+            then = [r for t, r in self._smooth if abs(t - t_then) <= _NS // 20]
+            if not then or self._smooth[0][0] > t_then:
+                continue
+            d = rho_s - then[0]
+            h = max(self.wheel_change_mps(w), k * math.sqrt(self.spread_var[i]))
+            if abs(d) > h:
+                alarm = t_then if alarm is None else min(alarm, t_then)
+            else:  # learn the spread at this scale, robustly (clipped at 3 sigma)
+                d2 = min(d * d, 9.0 * self.spread_var[i])
+                self.spread_var[i] += 0.01 * (d2 - self.spread_var[i])
+        return alarm
+
+    def _smoothed(self, t_ns: int) -> float:
+        recent = [r for t, r in self._free if t >= t_ns - int(_SMOOTH_S * _NS)]
+        return sum(recent) / len(recent)
+
+    def _start_change(self, anchor: tuple[float, float, bool] | None, side: str) -> None:
+        self._previous, self._anchor = self.slip_hold, anchor
+        self.slip_hold, self.mode = None, Mode.MEASURE
+        self._measure_since_ns, self._change_count = None, 0
+        self._aided.clear()
+        self._free.clear()
+        self._smooth.clear()
+        self._from_rest = False
+        self.changes[side] += 1
+
+    def values(self) -> dict:
+        """Figures for /diagnostics."""
+        return {'slip_model_mode': self.mode.value,
+                'slip_hold': self.slip_hold if self.slip_hold is not None else math.nan,
+                'slip_baseline': self.baseline if self.baseline is not None else math.nan,
+                'slip_changes_wheel_side': self.changes['wheel'],
+                'slip_changes_body_side': self.changes['body'],
+                'slip_residual_spread_1s_mps': math.sqrt(self.spread_var[0])}
