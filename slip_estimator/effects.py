@@ -50,6 +50,13 @@ TEST17RUN_BODY_WINDOWS: tuple[Window, ...] = (
 real rate. With the log's own ~0.03 slip the truth is ~0.30 (medium), 0.55 (high), 0.84
 (extreme), 0.46 (high). A body running ahead of steady wheels needs a downhill slope, which
 this level log cannot give its IMU: negative slip is tested in simulation, on real hills."""
+TEST17RUN_BODY_PATTERNS: tuple[tuple[Window, ...], ...] = (
+    TEST17RUN_BODY_WINDOWS,
+    ((8.0, 15.0, 0.46), (19.0, 26.0, 0.72), (30.0, 37.0, 0.56), (41.0, 49.0, 0.16)),
+    ((12.0, 18.0, 0.16), (23.0, 30.0, 0.56), (34.0, 40.0, 0.72), (44.0, 51.0, 0.46)),
+    ((9.0, 16.0, 0.72), (20.0, 27.0, 0.16), (31.0, 38.0, 0.46), (42.0, 50.0, 0.72)))
+"""Body-side window patterns on test17run (positions and levels permuted), for the tests and
+the validation study."""
 TEST17RUN_MIXED_WINDOWS: tuple[tuple[Window, ...], tuple[Window, ...]] = (
     ((21.0, 28.0, 1.8), (42.0, 50.0, 5.0)), ((10.0, 17.0, 0.72), (32.0, 38.0, 0.46)))
 """(wheel-side, body-side) windows of the mixed variant: high and extreme slip from wheels
