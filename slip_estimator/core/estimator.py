@@ -67,7 +67,6 @@ from slip_estimator.core.types import (
 _NS = 1_000_000_000
 _HISTORY_S = 2.0
 _HISTORY_NS = int(_HISTORY_S * _NS)
-_AID_MEMORY_S = 3.0  # how long the slip model's free speed excludes an aid correction
 _MAX_PENDING_WHEEL = 50
 # Odometry covariances. Pose: (position, attitude psi) in odom (ENU) is a signed permutation
 # of (POS, ATT) scaled by 1 / T_r(n)^p, written as indices and signs: rows/cols
@@ -498,20 +497,22 @@ class SlipEstimator:
         vN, vE, vD = st.v_eb_n.tolist()
         v_fwd = (c1 * vN + c2 * vE + c3 * vD) + wy * lz - wz * ly
         # The slip model's free forward speed: the filter's, less what the wheel aid did to it
-        # recently (its velocity jumps, and the along-track acceleration its attitude and
-        # accelerometer-bias corrections cause, forgotten over _AID_MEMORY_S), so the aid
-        # cannot hide a slip step from the detector by tilting the INS.
+        # (its velocity jumps, and the along-track acceleration its attitude and
+        # accelerometer-bias corrections cause from then on), with that acceleration, so that
+        # a speed change over an interval can be taken without the aid corrections made in it
+        # (the aid cannot hide a slip step by tilting the INS).
         self._aid_v += self._aid_a * dt
-        self._aid_a *= 1.0 - dt / _AID_MEMORY_S
         history = self._history
-        history.append((stamp_ns, v_fwd - self._history_shift, wz, v_fwd - self._aid_v))
+        history.append((stamp_ns, v_fwd - self._history_shift, wz, v_fwd - self._aid_v,
+                        self._aid_a))
         horizon = stamp_ns - _HISTORY_NS
         while history[0][0] < horizon:  # never empties: the newest entry is not older
             history.popleft()
 
-    def _history_at(self, stamp_ns: int) -> tuple[float, float, float] | None:
-        """Forward speed, yaw rate (FRD) and the slip model's free forward speed (see
-        :meth:`_record_history`) at ``stamp_ns``, by linear interpolation."""
+    def _history_at(self, stamp_ns: int) -> tuple[float, float, float, float] | None:
+        """Forward speed, yaw rate (FRD), the slip model's free forward speed and the aid's
+        along-track acceleration (see :meth:`_record_history`) at ``stamp_ns``, by linear
+        interpolation."""
         h = self._history
         if not h or stamp_ns < h[0][0] or stamp_ns > h[-1][0]:
             return None
@@ -522,10 +523,11 @@ class SlipEstimator:
                 lo = mid
             else:
                 hi = mid
-        t0, v0, y0, f0 = h[lo]
-        t1, v1, y1, f1 = h[hi]
+        t0, v0, y0, f0, a0 = h[lo]
+        t1, v1, y1, f1, a1 = h[hi]
         a = 0.0 if t1 == t0 else (stamp_ns - t0) / (t1 - t0)
-        return v0 + a * (v1 - v0) + self._history_shift, y0 + a * (y1 - y0), f0 + a * (f1 - f0)
+        return (v0 + a * (v1 - v0) + self._history_shift, y0 + a * (y1 - y0),
+                f0 + a * (f1 - f0), a0 + a * (a1 - a0))
 
     def covariance(self) -> np.ndarray:
         """Error-state covariance at the time of the last IMU sample (flushes the decimated
@@ -549,7 +551,7 @@ class SlipEstimator:
             if at is None:
                 self.counters['wheel_late'] += 1
                 continue
-            v_hist, yaw_rate_b, v_raw = at
+            v_hist, yaw_rate_b, v_free, aid_accel = at
             if self._recovering(wheel.stamp_ns):
                 # Re-anchor the velocity on the wheels (zero slip assumed, so slip is unknown).
                 if self.params.wheel_aid != 'off' and not self.is_turning:
@@ -561,7 +563,7 @@ class SlipEstimator:
             est = self._slip(wheel, v_hist, yaw_rate_b)
             out.append(est)
             if self.params.wheel_aid == 'hold':
-                self._apply_slip_model(wheel, v_hist, v_raw, est)
+                self._apply_slip_model(wheel, v_hist, v_free, aid_accel, est)
         out.extend(self._stale_check())
         return out
 
@@ -573,14 +575,14 @@ class SlipEstimator:
             return False
         return True
 
-    def _apply_slip_model(self, wheel: WheelSample, v_hist: float, v_raw: float,
-                          est: SlipEstimate) -> None:
+    def _apply_slip_model(self, wheel: WheelSample, v_hist: float, v_free: float,
+                          aid_accel: float, est: SlipEstimate) -> None:
         """Let the slip model (:mod:`slip_estimator.core.slip_model`) decide the wheel aid."""
         w = wheel.rim_speed_mps
         moving = est.slip_class > 0 and abs(w) >= self.params.moving_speed_threshold
         pitch_rad = -math.asin(max(-1.0, min(1.0, float(self.state.C_b_n[2, 0]))))
-        d = self.slip_model.step(wheel.stamp_ns, w, v_hist, v_raw, moving, self.is_turning,
-                                 pitch_rad)
+        d = self.slip_model.step(wheel.stamp_ns, w, v_hist, v_free, moving, self.is_turning,
+                                 pitch_rad, aid_accel)
         if d is None:
             return
         if d.held_slip is not None:
@@ -611,7 +613,10 @@ class SlipEstimator:
         # significantly above it (an in-place turn or a stop must not read as extreme slip
         # because of a few cm/s of velocity uncertainty).
         body_threshold = max(p.moving_speed_threshold, 3.0 * math.sqrt(max(var_v, 0.0)))
-        moving = abs(w) >= p.moving_speed_threshold or abs(v_body) >= body_threshold
+        # The stationarity detector (IMU still and wheels stopped) says "not moving" outright:
+        # a few cm/s of INS error at a stop must not read as a body sliding off its wheels.
+        moving = (abs(w) >= p.moving_speed_threshold or abs(v_body) >= body_threshold) \
+            and not self.is_stationary
         s = slip_ratio(v_body, w) if moving else 0.0
         s_std = slip_ratio_std(v_body, w, var_v, var_w) if moving else 0.0
         sides = [None, None]

@@ -64,6 +64,13 @@ by sqrt(n), a slip transition (>= 0.5 s) is barely blurred."""
 _SCALES_S = (1.0, 2.5)
 """Time scales of the step test: a slip transition of 0.5-3 s shows fully in one of them,
 while the INS random walk grows only like sqrt(T)."""
+_SCALES_NS = tuple(int(x * 1e9) for x in _SCALES_S)
+_SMOOTH_NS = int(_SMOOTH_S * 1e9)
+_SPREAD_PRIOR_N = 10
+_SPREAD_MEMORY_N = 500
+"""The spread is learned as a running mean (from a prior worth 10 samples) that becomes an
+EMA over 500 samples (50 s at 10 Hz): a step that stays under the threshold cannot inflate it
+within its own transition."""
 _MEMORY_S = 4.0
 """Samples kept: the smoothing and spread horizons plus a slow transition before an alarm."""
 _MEASURE_TIMEOUT_FACTOR = 5.0
@@ -82,6 +89,9 @@ _RUN_AHEAD_PITCH_RAD = math.radians(2.0)
 _QUIET_AFTER_GAP_S = 4.0
 """After an IMU gap the filter settles its attitude and biases for a few seconds (and the free
 speed excludes the aid's corrections for ``_AID_MEMORY_S``): no body-side step test then."""
+_RUN_AHEAD_MIN_SLIP = 0.15
+"""A run-ahead this large (medium negative slip) needs the downhill pull; a few percent can
+come from a gentle slope, encoder scale or skid."""
 _STOP_S = 0.5
 """Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
 _ANCHOR_S = 0.5
@@ -123,14 +133,19 @@ class SlipModel:
     """Slip change detection on both sides and wheel-aid decisions (see the module docstring).
 
     ``step`` takes one wheel sample: rim speed ``w``, the filter's forward speed ``v`` and the
-    free forward speed ``v_free`` (the filter's, less the wheel aid's recent corrections) at the
-    wheel time, and returns the aid to apply or None.
+    free forward speed ``v_free`` (the filter's, less everything the wheel aid did to it) and
+    the along-track acceleration the aid's corrections cause now, ``aid_accel_mps2``, at the
+    wheel time, and returns the aid to apply or None. The free speed's change from a past
+    sample plus that sample's aid acceleration times the elapsed time is the speed change the
+    INS saw without the aid corrections made in between.
     """
 
     def __init__(self, params: Params) -> None:
         self.params = params
-        # Prior spread: twice the aid noise per sqrt(s) (a random walk).
+        # Prior spread: twice the aid noise per sqrt(s) (a random walk), worth _SPREAD_PRIOR_N
+        # samples; then a running mean, slowing to an EMA over _SPREAD_MEMORY_N samples.
         self.spread_var = [(2.0 * params.wheel_aid_std) ** 2 * t for t in _SCALES_S]
+        self._spread_n = [_SPREAD_PRIOR_N] * len(_SCALES_S)
         self.aid_noise_var = 0.0
         self.changes = {'wheel': 0, 'body': 0}
         self.baseline: float | None = None
@@ -142,16 +157,19 @@ class SlipModel:
         self._previous: float | None = None
         self._anchor: tuple[float, float, bool] | None = None  # (model v, INS v, free INS?)
         self._measure_since_ns: int | None = None
-        self._vals: list[tuple[float, float, float, float]] = []
+        self._vals: list[tuple[float, float, float, float, int]] = []
         self._change_count = 0
         self._last_w: float | None = None
         self._recent_w: deque = deque()
         self._aided: deque = deque()  # (t, z, v, v_free) while tracking
-        self._free: deque = deque()  # (t, rho) free residual while tracking
+        self._free: deque = deque()  # (t, rho) free residual over the smoothing time
+        self._free_sum = 0.0
         self._smooth: deque = deque()  # (t, smoothed free residual) while tracking
         self._stopped_since_ns: int | None = None
         self._last_t_ns = 0
         self._pitch_rad = 0.0
+        self._aid_accel = 0.0
+        self._chain_var = 0.0
         self._reanchor = False
         self._quiet_until_ns = 0
 
@@ -165,6 +183,7 @@ class SlipModel:
         """The INS went through a gap: its speed change across it says nothing about slip, so
         the step test and a running measurement start afresh (the held slip is kept)."""
         self._free.clear()
+        self._free_sum = 0.0
         self._smooth.clear()
         self._aided.clear()
         self._measure_since_ns = None
@@ -172,8 +191,10 @@ class SlipModel:
 
     # ------------------------------------------------------------------ the step
     def step(self, t_ns: int, w: float, v: float, v_free: float, moving: bool,
-             turning: bool, pitch_rad: float = 0.0) -> AidDecision | None:
+             turning: bool, pitch_rad: float = 0.0, aid_accel_mps2: float = 0.0
+             ) -> AidDecision | None:
         self._last_t_ns = t_ns
+        self._aid_accel = aid_accel_mps2
         self._pitch_rad = pitch_rad
         if not moving:
             stopped_since = self._stopped_since_ns
@@ -210,14 +231,15 @@ class SlipModel:
         if self._measure_since_ns is None:
             self._measure_since_ns, self._vals = t_ns, []
         vals = self._vals
-        vals.append((slip_ratio(v, w), v, w, v_free))
-        if t_ns - self._measure_since_ns < int(p.slip_measure_s * _NS):
-            return None
+        vals.append((slip_ratio(v, w), v, w, v_free, t_ns))
+        # After a body-side alarm the rest of the transition must be measured through (the
+        # alarm comes mid-transition): once trimmed, the rest spans the measuring time again.
         body = self._anchor is not None and self._anchor[2]
+        if t_ns - (vals[0][4] if body else self._measure_since_ns) < int(p.slip_measure_s * _NS):
+            return None
         half = len(vals) // 2
-        k = 3 if body else 1
-        dv = (sum(x[k] for x in vals[half:]) / (len(vals) - half)
-              - sum(x[k] for x in vals[:half]) / max(half, 1))
+        dv = (sum(x[1] for x in vals[half:]) / (len(vals) - half)
+              - sum(x[1] for x in vals[:half]) / max(half, 1))
         if abs(dv) > max(0.02, 2.0 * math.sqrt(self.aid_noise_var)) and \
                 t_ns - self._measure_since_ns < int(_MEASURE_TIMEOUT_FACTOR * p.slip_measure_s
                                                     * _NS):
@@ -228,6 +250,7 @@ class SlipModel:
         measured = self._settle(w)
         self.slip_hold, self.mode = measured, Mode.TRACK
         self._free.clear()
+        self._free_sum = 0.0
         self._smooth.clear()
         # Anchor the velocity on the new hold now (not gated: where the measurement snapped,
         # the INS is known to have drifted, it is not an outlier).
@@ -237,25 +260,34 @@ class SlipModel:
     def _settle(self, w: float) -> float:
         """The slip a finished measurement settles on.
 
-        From rest (ZUPT-anchored) or after a recovery: the median INS slip. After a change:
-        velocity continuity from the held model before it, plus the INS speed change across
-        it (the free INS for a body-side change, whose onset the aid had already pulled at),
-        a change within ``slip_continuity_sigma`` of the measured aid noise taken as none."""
+        From rest (ZUPT-anchored) or after a recovery: the median INS slip. After a wheel-side
+        change: velocity continuity from the held model before it, plus the INS speed change
+        across it, a change within ``slip_continuity_sigma`` of the measured aid noise taken as
+        none. After a body-side change: the INS speed since the alarm's re-anchor (continuity
+        from the free speed, whose onset the aid had already pulled at)."""
         p = self.params
         vals = self._vals
         if self._anchor is None:
             measured = sorted(x[0] for x in vals)[len(vals) // 2]
+        elif self._anchor[2]:
+            # Body side: the velocity was re-anchored on continuity at the alarm; the INS has
+            # run free since (no aid), so its mean speed is the measurement.
+            measured = slip_ratio(sum(x[1] for x in vals) / len(vals),
+                                  sum(x[2] for x in vals) / len(vals))
         else:
-            z_before, v_before, free = self._anchor
-            k = 3 if free else 1
-            dv = sum(x[k] for x in vals) / len(vals) - v_before
+            z_before, v_before, _ = self._anchor
+            dv = sum(x[1] for x in vals) / len(vals) - v_before
             if abs(dv) < p.slip_continuity_sigma * math.sqrt(self.aid_noise_var):
                 dv = 0.0
             measured = slip_ratio(z_before + dv, sum(x[2] for x in vals) / len(vals))
         self._anchor = None
         previous, baseline = self._previous, self.baseline
-        h = self.wheel_change_mps(w)
-        if (not self._from_rest and baseline is not None and measured * abs(w) < -h
+        # Within this speed of the previous hold or of the baseline a measurement is that
+        # value: the wheel-side threshold, or less where the INS over a measurement's span is
+        # better than that (a good IMU resolves smaller slip differences).
+        h = min(self.wheel_change_mps(w),
+                p.slip_continuity_sigma * math.sqrt(self.spread_var[-1]))
+        if (not self._from_rest and baseline is not None and measured < -_RUN_AHEAD_MIN_SLIP
                 and self._pitch_rad > -_RUN_AHEAD_PITCH_RAD):
             # The body cannot run ahead of wheels held at a steady rate on level or rising
             # ground (that takes a downhill pull): the INS says so only when it missed the
@@ -263,13 +295,21 @@ class SlipModel:
             measured = baseline
         if self._from_rest:
             self.baseline, self._from_rest = measured, False
-        elif previous is not None and abs(measured - previous) * abs(w) < h:
+            self._chain_var = 0.0
+            return measured
+        # Each change measured from the held model before it adds its INS error to the
+        # model's: the chain's spread since the last anchor (a start from rest, or a return to
+        # the baseline) is how far from the baseline a measurement may still be that ground.
+        self._chain_var += self.spread_var[-1]
+        if previous is not None and abs(measured - previous) * abs(w) < h:
             measured = previous  # a false alarm: the INS confirms the held slip
         elif (baseline is not None and p.slip_baseline == 'snap'
-              and abs(measured - baseline) * abs(w) < h):
+              and abs(measured - baseline) * abs(w)
+              < max(h, p.slip_continuity_sigma * math.sqrt(self._chain_var))):
             # Back on ordinary ground: the slip measured after the last start, anchored on the
             # zero velocity at rest, is more accurate than a chain of INS intervals.
             measured = baseline
+            self._chain_var = 0.0
         return measured
 
     # ------------------------------------------------------------------ tracking
@@ -300,8 +340,8 @@ class SlipModel:
         # The rim must have moved by at least half the discrepancy it is to explain (encoder
         # noise moves it too; a body-side change leaves it where it was).
         gap = abs(z - v)
-        rim_moved = max(abs(w - wk) for _, wk in self._recent_w) * g > 0.5 * gap
-        if gap > self.wheel_change_mps(w) and rim_moved:
+        if gap > self.wheel_change_mps(w) and \
+                max(abs(w - wk) for _, wk in self._recent_w) * g > 0.5 * gap:
             self._change_count += 1
             if self._change_count >= _WHEEL_CHANGE_SAMPLES:
                 a = self._aided
@@ -311,24 +351,31 @@ class SlipModel:
                 self._start_change(anchor, 'wheel')
             return None
         self._change_count = 0
-        # Body side: a step of the free residual (CUSUM with the INS drift allowance).
+        # Body side: a step of the free residual.
         onset_ns = self._body_step(t_ns, w, v_free - z, turning)
         if quiet:
             onset_ns = None
         if onset_ns is not None:
+            # Continuity from before the longest scale: a transition slower than the scale
+            # that fired began earlier, while the aid still held the old slip.
+            onset_ns = min(onset_ns, t_ns - _SCALES_NS[-1])
             before = [x for x in self._aided if onset_ns - int(_ANCHOR_S * _NS) <= x[0] <= onset_ns]
             before = before or list(self._aided)[:1]
             if before:
                 z0 = sum(x[1] for x in before) / len(before)
                 f0 = sum(x[3] for x in before) / len(before)
+                t0, a0 = before[-1][0], before[-1][4]
                 self._start_change((z0, f0, True), 'body')
-                # Re-anchor now: the aid had been pulling the INS back onto the old slip.
-                return AidDecision(z0 + v_free - f0, p.wheel_aid_std ** 2, anchor=True)
+                # Re-anchor now on continuity (the aid had been pulling the INS back onto the
+                # old slip): the held speed before the onset plus the free speed change since,
+                # without the aid corrections made since the onset.
+                return AidDecision(z0 + v_free - f0 + a0 * (t_ns - t0) * 1e-9,
+                                   p.wheel_aid_std ** 2, anchor=True)
         # Consistency noise of INS and wheels (vibration, encoder quantisation, pitching).
         self.aid_noise_var += (0.02 if self.aid_noise_var else 1.0) * (
             (z - v) ** 2 - self.aid_noise_var)
         a = self._aided
-        a.append((t_ns, z, v, v_free))
+        a.append((t_ns, z, v, v_free, self._aid_accel))
         if not steady:
             # Speeding up or braking, the slip of a skid-steer rover is not the cruise slip
             # held, and the INS is good over the few tenths of a second it takes: no aid.
@@ -344,31 +391,35 @@ class SlipModel:
         (learned online, robustly). Returns the onset time on an alarm."""
         free = self._free
         free.append((t_ns, rho))
-        while free[0][0] < t_ns - int((_SCALES_S[-1] + _SMOOTH_S) * _NS):
-            free.popleft()
-        rho_s = self._smoothed(t_ns)
-        self._smooth.append((t_ns, rho_s))
-        while self._smooth[0][0] < t_ns - int(_SCALES_S[-1] * _NS) - _NS // 10:
-            self._smooth.popleft()
+        self._free_sum += rho
+        while free[0][0] < t_ns - _SMOOTH_NS:
+            self._free_sum -= free.popleft()[1]
+        rho_s = self._free_sum / len(free)
+        smooth = self._smooth
+        smooth.append((t_ns, rho_s, self._aid_accel))
+        while len(smooth) > 2 and smooth[1][0] <= t_ns - _SCALES_NS[-1]:
+            smooth.popleft()  # keep one entry at or before the longest scale
         k = self.params.slip_change_sigma * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
         alarm = None
-        for i, scale_s in enumerate(_SCALES_S):
-            t_then = t_ns - int(scale_s * _NS)
-            then = [r for t, r in self._smooth if abs(t - t_then) <= _NS // 20]
-            if not then or self._smooth[0][0] > t_then:
+        for i, scale_ns in enumerate(_SCALES_NS):
+            t_then = t_ns - scale_ns
+            then = None
+            for t, r, acc in smooth:  # the newest value at or before t_then (oldest first)
+                if t > t_then:
+                    break
+                then = (t, r, acc)
+            if then is None:
                 continue
-            d = rho_s - then[0]
+            # The change since then without the aid corrections made since then.
+            d = rho_s - then[1] + then[2] * (t_ns - then[0]) * 1e-9
             h = max(self.wheel_change_mps(w), k * math.sqrt(self.spread_var[i]))
             if abs(d) > h:
                 alarm = t_then if alarm is None else min(alarm, t_then)
             else:  # learn the spread at this scale, robustly (clipped at 3 sigma)
                 d2 = min(d * d, 9.0 * self.spread_var[i])
-                self.spread_var[i] += 0.01 * (d2 - self.spread_var[i])
+                n = self._spread_n[i] = min(self._spread_n[i] + 1, _SPREAD_MEMORY_N)
+                self.spread_var[i] += (d2 - self.spread_var[i]) / n
         return alarm
-
-    def _smoothed(self, t_ns: int) -> float:
-        recent = [r for t, r in self._free if t >= t_ns - int(_SMOOTH_S * _NS)]
-        return sum(recent) / len(recent)
 
     def _start_change(self, anchor: tuple[float, float, bool] | None, side: str) -> None:
         self._previous, self._anchor = self.slip_hold, anchor
@@ -376,6 +427,7 @@ class SlipModel:
         self._measure_since_ns, self._change_count = None, 0
         self._aided.clear()
         self._free.clear()
+        self._free_sum = 0.0
         self._smooth.clear()
         self._from_rest = False
         self.changes[side] += 1

@@ -18,10 +18,12 @@ from slip_estimator.sim.scenario import (
                                          TerrainConfig,
                                          VibrationConfig,
                                          default_scenario,
+                                         mixed_scenario,
+                                         patch_scenario,
                                          short_scenario,
 )
 
 __all__ = ['SimResult', 'simulate', 'slip_class', 'slip_ratio', 'WHEEL_JOINT_NAMES',
            'GnssConfig', 'HillSpec', 'ImuErrorConfig', 'RoverConfig', 'ScenarioConfig',
            'Segment', 'SiteConfig', 'TerrainConfig', 'VibrationConfig', 'default_scenario',
-           'short_scenario']
+           'mixed_scenario', 'patch_scenario', 'short_scenario']

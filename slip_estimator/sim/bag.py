@@ -30,6 +30,8 @@ from slip_estimator.sim.rover import SimResult, simulate
 from slip_estimator.sim.scenario import (
     WHEEL_JOINT_NAMES,
     default_scenario,
+    mixed_scenario,
+    patch_scenario,
     short_scenario,
 )
 
@@ -221,6 +223,14 @@ def write_sim_bag(result: SimResult, bag_path: str | Path,
     return counts
 
 
+SCENARIOS = {
+    'default': default_scenario, 'short': short_scenario, 'mixed': mixed_scenario,
+    'patches': patch_scenario,
+    'rough': lambda seed=0, noise_seed=None: patch_scenario(seed, rough=True,
+                                                            noise_seed=noise_seed)}
+"""The scenarios ``simulate --scenario`` offers (wheel-rate control unless mixed)."""
+
+
 def simulate_main(argv: list[str] | None = None) -> int:
     """``slip-estimator simulate``: run a seeded scenario and write the bag (and params)."""
     ap = argparse.ArgumentParser(prog='slip-estimator simulate',
@@ -229,14 +239,15 @@ def simulate_main(argv: list[str] | None = None) -> int:
     ap.add_argument('--seed', type=int, default=0, help='truth (trajectory/terrain) seed')
     ap.add_argument('--noise-seed', type=int, default=None,
                     help='sensor noise seed (default: seed + 1)')
-    ap.add_argument('--scenario', choices=('default', 'short'), default='default')
+    ap.add_argument('--scenario', choices=tuple(SCENARIOS), default='default',
+                    help='default, short, mixed (body- and wheel-side slip), patches (600 s '
+                         'random drive) or rough (the same on rough ground)')
     ap.add_argument('--duration-s', type=float, default=None,
                     help='cut the scenario after this many seconds')
     ap.add_argument('--output', '-o', required=True, help='bag directory to create')
     ap.add_argument('--params-out', default=None, help='write a matching ROS 2 params file')
     args = ap.parse_args(argv)
-    make = default_scenario if args.scenario == 'default' else short_scenario
-    cfg = make(args.seed, args.noise_seed)
+    cfg = SCENARIOS[args.scenario](args.seed, noise_seed=args.noise_seed)
     if args.duration_s is not None:
         if args.duration_s < 10.0:
             ap.error('--duration-s must be >= 10 (the initial stationary period)')

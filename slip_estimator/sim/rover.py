@@ -145,7 +145,7 @@ def slip_class(slip: np.ndarray, body_speed_mps: np.ndarray, rim_speed_mps: np.n
 
 def _slip_gain(s: np.ndarray) -> np.ndarray:
     """K(s) = r w / v: 1/(1-s) for s >= 0, 1+s for s < 0 (eq. 1 solved for r w)."""
-    return np.where(s >= 0.0, 1.0 / (1.0 - np.minimum(s, 0.99)), 1.0 + s)
+    return np.where(s >= 0.0, 1.0 / (1.0 - np.minimum(s, 0.99)), 1.0 + np.maximum(s, -0.99))
 
 
 # --- profiles and terrain ------------------------------------------------------------------------
@@ -300,12 +300,19 @@ def simulate(config: ScenarioConfig) -> SimResult:
     t = (np.arange(n_fine + 2) - 1) * h
     starts = np.cumsum([0.0] + [s.duration_s for s in cfg.segments[:-1]])
     segs = cfg.segments
-    v = _profile(t, starts, [s.speed_mps for s in segs], [s.speed_ramp_s for s in segs], 0.0)
-    v = np.maximum(v, 0.0)
+    cmd = _profile(t, starts, [s.speed_mps for s in segs], [s.speed_ramp_s for s in segs], 0.0)
+    cmd = np.maximum(cmd, 0.0)
     psi_dot = _profile(t, starts, [s.yaw_rate_rps for s in segs], [1.0] * len(segs), 0.0)
-    s_cmd = _profile(t, starts, [s.slip for s in segs], [0.5] * len(segs), segs[0].slip)
+    s_cmd = _profile(t, starts, [s.slip for s in segs], [s.slip_ramp_s for s in segs],
+                     segs[0].slip)
     spin = np.maximum(_profile(t, starts, [s.spin_mps for s in segs], [1.0] * len(segs), 0.0),
                       0.0)
+    # Wheel control (weight 1): the controllers hold the commanded rim speed and the terrain's
+    # slip sets the body speed; body control (0): the body speed is scripted.
+    wheel_ctl = np.clip(_profile(t, starts, [float(s.control == 'wheel') for s in segs],
+                                 [1.0] * len(segs), float(segs[0].control == 'wheel')), 0.0, 1.0)
+    v = wheel_ctl * cmd / _slip_gain(s_cmd) + (1.0 - wheel_ctl) * cmd
+    spin = (1.0 - wheel_ctl) * spin
 
     yaw0 = heading_to_yaw_enu(site.heading_deg)
     psi = yaw0 + _cumtrapz(psi_dot, h)

@@ -34,18 +34,32 @@ WHEEL_IS_LEFT = (True, False, True, False)
 class Segment:
     """One piece of the commanded motion; targets are reached by smooth (C2) ramps.
 
+    Two physical mechanisms, chosen by ``control``:
+
+    * ``'wheel'`` (default): the motor controllers hold the commanded wheel rate, as on every
+      planetary rover. ``speed_mps`` is the commanded rim speed r*omega; the terrain's slip
+      sets the body speed, v = r*omega (1 - s) for s >= 0 (sand slows the body, s -> 1 is
+      stuck with the wheels turning) and v = r*omega / (1 + s) for s < 0 (downhill the body
+      runs ahead of its wheels). A slip change therefore shows as a body acceleration the
+      IMU sees, over ``slip_ramp_s``, at an unchanged wheel rate;
+    * ``'body'``: the body speed is scripted and the wheels spin up: ``speed_mps`` is the
+      body speed and rim = v/(1-s) (s >= 0) or v (1+s) (s < 0), plus ``spin_mps``. A slip
+      change shows in the encoders at an unchanged body speed.
+
     Attributes
     ----------
     duration_s : length of the segment, s.
-    speed_mps : target forward body speed of base_link (along its x axis, i.e. along the
-        terrain surface), m/s, >= 0.
+    speed_mps : commanded rim speed (wheel control) or body speed of base_link along its x
+        axis (body control), m/s, >= 0.
     yaw_rate_rps : target heading rate (ENU yaw, counter-clockwise positive), rad/s.
-    slip : target longitudinal slip s of the wheels, applied as rim = v/(1-s) for s >= 0 and
-        rim = v (1+s) for s < 0 (paper eq. 1 solved for r*omega); must be < 0.95. A slip of 1
-        (wheels spinning, body stopped) is made with ``speed_mps=0`` and ``spin_mps>0``.
-    spin_mps : extra rim speed added to every wheel (wheels digging in), m/s, >= 0.
+    slip : target longitudinal slip s (paper eq. 1); < 0.95 with body control (s = 1 there is
+        ``speed_mps=0`` with ``spin_mps>0``), <= 0.98 with wheel control.
+    spin_mps : extra rim speed added to every wheel (body control only), m/s, >= 0.
     speed_ramp_s : duration of the speed blend at the segment start, s.
     label : free text used in reports ('stationary', 'cruise', 'turn', 'stop', ...).
+    control : 'wheel' or 'body' (see above).
+    slip_ramp_s : duration of the slip blend at the segment start, s, in [0.5, 3]: how fast
+        the rover enters or leaves a patch of other ground.
     """
 
     duration_s: float
@@ -55,15 +69,24 @@ class Segment:
     spin_mps: float = 0.0
     speed_ramp_s: float = 2.0
     label: str = ''
+    control: str = 'wheel'
+    slip_ramp_s: float = 1.5
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0.0:
             raise ValueError(f'segment {self.label!r}: duration_s must be > 0')
         if self.speed_mps < 0.0 or self.spin_mps < 0.0:
             raise ValueError(f'segment {self.label!r}: speed_mps and spin_mps must be >= 0')
-        if not -1.0 < self.slip < 0.95:
+        if self.control not in ('wheel', 'body'):
+            raise ValueError(f'segment {self.label!r}: control must be wheel or body')
+        if self.control == 'body' and not -1.0 < self.slip < 0.95:
             raise ValueError(f'segment {self.label!r}: slip must be in (-1, 0.95); use '
                              'speed_mps=0 with spin_mps>0 for s=1')
+        if self.control == 'wheel' and not (-1.0 < self.slip <= 0.98 and self.spin_mps == 0.0):
+            raise ValueError(f'segment {self.label!r}: with wheel control slip must be in '
+                             '(-1, 0.98] and spin_mps 0 (the controller holds the rim speed)')
+        if not 0.5 <= self.slip_ramp_s <= 3.0:
+            raise ValueError(f'segment {self.label!r}: slip_ramp_s must be in [0.5, 3] s')
         if not self.speed_ramp_s > 0.0:
             raise ValueError(f'segment {self.label!r}: speed_ramp_s must be > 0')
 
@@ -149,6 +172,14 @@ class VibrationConfig:
     def off(cls) -> VibrationConfig:
         """No vibration."""
         return cls((), (), (), 0.0, 0.0)
+
+    def scaled(self, k: float) -> VibrationConfig:
+        """The same harmonics with every amplitude times ``k`` (rougher ground)."""
+        return VibrationConfig(self.harmonic_multipliers,
+                               tuple(k * a for a in self.accel_harmonic_mps2_per_mps),
+                               tuple(k * a for a in self.gyro_harmonic_rps_per_mps),
+                               k * self.accel_broadband_mps2_per_mps,
+                               k * self.gyro_broadband_rps_per_mps)
 
 
 @dataclass(frozen=True)
@@ -298,10 +329,11 @@ class _Builder:
 
     def add(self, duration_s: float, speed_mps: float = 0.0, yaw_rate_rps: float = 0.0,
             slip: float | None = None, spin_mps: float = 0.0, label: str = '',
-            speed_ramp_s: float = 2.0) -> float:
+            speed_ramp_s: float = 2.0, control: str = 'wheel', slip_ramp_s: float = 1.5
+            ) -> float:
         s = _low_slip(self.rng) if slip is None else slip
         self.segments.append(Segment(duration_s, speed_mps, yaw_rate_rps, s, spin_mps,
-                                     speed_ramp_s, label))
+                                     speed_ramp_s, label, control, slip_ramp_s))
         t0 = self.t_s
         self.t_s += duration_s
         return t0
@@ -312,7 +344,8 @@ class _Builder:
 
 
 def short_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioConfig:
-    """About 90 s: alignment, a turn, a hill, stops and medium, high and extreme slip.
+    """About 90 s of wheel-rate control: alignment, a turn, a hill, stops and medium, high and
+    extreme slip (the body slowing at held wheel rates), a downhill run-ahead, stuck.
 
     ``seed`` is the truth seed; the noise seed defaults to ``seed + 1``.
     """
@@ -321,13 +354,13 @@ def short_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioConf
     b.add(8.0, 0.5, label='accelerate')
     b.add(8.0, 0.5, label='cruise')
     b.add(6.0, 0.5, 0.25, label='arc left')
-    t_up = b.add(8.0, 0.4, slip=0.3, label='uphill medium slip')
+    t_up = b.add(8.0, 0.55, slip=0.3, label='uphill medium slip')
     b.add(6.0, 0.4, slip=-0.12, label='downhill skid')
     b.hill(t_up + 8.0, 1.2, 4.0, lateral_offset_m=1.5)
-    b.add(6.0, 0.25, slip=0.55, label='high slip')
+    b.add(6.0, 0.55, slip=0.55, label='sand, high slip')
     b.add(5.0, 0.0, label='stop')
-    b.add(6.0, 0.0, slip=0.0, spin_mps=0.3, speed_ramp_s=1.5, label='stuck, wheels spinning')
-    b.add(6.0, 0.12, slip=0.8, spin_mps=0.0, label='extreme slip')
+    b.add(6.0, 0.3, slip=0.98, speed_ramp_s=1.5, label='stuck, wheels spinning')
+    b.add(6.0, 0.6, slip=0.8, label='extreme slip')
     b.add(6.0, 0.5, -0.2, label='arc right')
     b.add(5.0, 0.0, label='stop')
     b.add(5.0, 0.0, 0.5, slip=0.1, label='in-place turn')
@@ -338,7 +371,8 @@ def short_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioConf
 
 
 def default_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioConfig:
-    """About 6.5 minutes: 15 s alignment, ~5.5 min of driving with every slip class.
+    """About 6.5 minutes of wheel-rate control: 15 s alignment, ~5.5 min of driving with every
+    slip class.
 
     Stops (>= 3 s at rest) every 30-60 s of driving, in-place turns, arcs, three hills (one
     crossed on its flank), uphill medium/high slip, downhill negative slip, extreme slip and
@@ -356,7 +390,7 @@ def default_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioCo
     b.add(4.0, 0.0, -0.45, slip=0.08, label='in-place turn right')
     b.add(4.0, 0.0, label='stop')
     b.add(10.0, 0.6, label='cruise')
-    t_up = b.add(12.0, 0.45, slip=0.3, label='uphill medium slip')
+    t_up = b.add(12.0, 0.65, slip=0.3, label='uphill medium slip')
     b.add(4.0, 0.5, label='crest')
     b.add(10.0, 0.5, slip=-0.3, label='downhill skid medium')
     b.add(6.0, 0.5, slip=-0.12, label='downhill skid low')
@@ -366,13 +400,13 @@ def default_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioCo
     b.add(15.0, 0.7, label='cruise')
     t_arc = b.add(15.0, 0.6, -0.1, label='arc right over hill flank')
     b.hill(t_arc + 7.5, 2.0, 8.0, lateral_offset_m=5.0)
-    b.add(12.0, 0.35, slip=0.55, label='sand, high slip')
-    b.add(10.0, 0.3, slip=0.45, label='sand, high slip')
+    b.add(12.0, 0.75, slip=0.55, label='sand, high slip')
+    b.add(10.0, 0.55, slip=0.45, label='sand, high slip')
     b.add(5.0, 0.0, label='stop')
     # leg 4: stuck in sand, wheels spinning, extreme slip while digging out
-    b.add(8.0, 0.0, slip=0.0, spin_mps=0.35, speed_ramp_s=1.5, label='stuck, wheels spinning')
-    b.add(12.0, 0.1, slip=0.78, label='digging out, extreme slip')
-    b.add(8.0, 0.15, slip=0.72, label='digging out, extreme slip')
+    b.add(8.0, 0.35, slip=0.98, speed_ramp_s=1.5, label='stuck, wheels spinning')
+    b.add(12.0, 0.45, slip=0.78, label='digging out, extreme slip')
+    b.add(8.0, 0.55, slip=0.72, label='digging out, extreme slip')
     b.add(5.0, 0.0, label='stop')
     # leg 5: long drive with turns, hill 3, several stops
     b.add(5.0, 0.0, 0.4, slip=0.1, label='in-place turn left')
@@ -391,3 +425,79 @@ def default_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioCo
     return ScenarioConfig(tuple(b.segments), truth_seed=seed,
                           noise_seed=seed + 1 if noise_seed is None else noise_seed,
                           terrain=TerrainConfig(tuple(b.hills)))
+
+
+def mixed_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioConfig:
+    """About 3 minutes mixing both mechanisms: sand patches that slow the body at held wheel
+    rates (wheel control) and patches where the wheels spin up at an unchanged body speed
+    (body control), with arcs and stops."""
+    b = _Builder(np.random.default_rng(seed))
+    b.add(12.0, label='stationary')
+    b.add(10.0, 0.6, label='start')
+    b.add(10.0, 0.6, slip=0.35, label='sand, body slows (medium)')
+    b.add(10.0, 0.6, 0.1, label='arc')
+    b.add(10.0, 0.45, slip=0.5, control='body', label='wheels spin up (high)')
+    b.add(10.0, 0.45, control='body', label='firm ground')
+    b.add(5.0, 0.0, control='body', label='stop')
+    b.add(10.0, 0.6, label='start')
+    b.add(10.0, 0.6, slip=0.6, label='sand, body slows (high)')
+    b.add(10.0, 0.6, -0.1, label='arc')
+    b.add(10.0, 0.3, slip=0.8, control='body', label='wheels dig in (extreme)')
+    b.add(10.0, 0.3, slip=0.3, control='body', label='wheels spin (medium)')
+    b.add(10.0, 0.5, control='body', label='firm ground')
+    b.add(5.0, 0.0, label='stop')
+    b.add(10.0, 0.6, label='start')
+    b.add(10.0, 0.6, slip=0.85, label='sand, nearly stuck (extreme)')
+    b.add(10.0, 0.6, label='firm ground')
+    b.add(6.0, 0.0, label='final stop')
+    return ScenarioConfig(tuple(b.segments), truth_seed=seed,
+                          noise_seed=seed + 1 if noise_seed is None else noise_seed)
+
+
+def patch_scenario(seed: int = 0, duration_s: float = 600.0, rough: bool = False,
+                   noise_seed: int | None = None) -> ScenarioConfig:
+    """A seeded random drive under wheel-rate control: legs of 30-60 s between stops, arcs,
+    patches of 5-20 s whose slip is drawn across every class (0.1-0.85) and downhill runs
+    (-0.15 to -0.3) on hills placed under them; ``rough`` raises the terrain undulation and
+    the vibration (rough ground)."""
+    rng = np.random.default_rng(seed)
+    b = _Builder(rng)
+    b.add(12.0, label='stationary')
+    while b.t_s < duration_s - 20.0:
+        leg_end = b.t_s + rng.uniform(30.0, 60.0)
+        speed = float(rng.uniform(0.4, 0.8))
+        b.add(6.0, speed, label='start')
+        last = 'start'
+        while b.t_s < leg_end:
+            kind = rng.uniform()
+            yaw = float(rng.choice([0.0, 0.0, 0.1, -0.1, 0.2, -0.2]))
+            if kind < 0.4 or last == 'downhill':
+                b.add(float(rng.uniform(5.0, 15.0)), speed, yaw, label='firm ground')
+                last = 'firm'
+            elif kind < 0.85:
+                s = float(rng.uniform(0.1, 0.85))
+                b.add(float(rng.uniform(5.0, 20.0)), speed, yaw, slip=s,
+                      slip_ramp_s=float(rng.uniform(0.5, 3.0)), label=f'patch s={s:.2f}')
+                last = 'patch'
+            else:
+                # Down the far flank of a hill whose crest the rover passes as the run starts:
+                # the body runs ahead of its wheels only while the slope pulls it.
+                s = float(rng.uniform(-0.3, -0.15))
+                run_s = float(rng.uniform(6.0, 10.0))
+                t0 = b.add(run_s, speed, 0.0, slip=s, slip_ramp_s=1.5,
+                           label=f'downhill s={s:.2f}')
+                length_m = speed / (1.0 + s) * run_s
+                b.hill(t0, 0.15 * length_m, 0.6 * length_m)
+                last = 'downhill'
+        b.add(float(rng.uniform(3.0, 8.0)), 0.0, label='stop')
+    b.add(8.0, label='final stop')
+    terrain = TerrainConfig(tuple(b.hills))
+    cfg = ScenarioConfig(tuple(b.segments), truth_seed=seed,
+                         noise_seed=seed + 1 if noise_seed is None else noise_seed,
+                         terrain=terrain)
+    if rough:
+        cfg = cfg.replace(
+            terrain=dataclasses.replace(terrain, undulation_amplitude_m=0.2,
+                                        undulation_wavelength_m=10.0),
+            imu=dataclasses.replace(cfg.imu, vibration=cfg.imu.vibration.scaled(3.0)))
+    return cfg
