@@ -15,14 +15,17 @@ setup(
         ('share/' + package_name + '/config', glob('config/*.yaml')),
         ('share/' + package_name + '/launch', glob('launch/*.py')),
     ],
-    package_data={package_name: ['data/*.yaml']},
-    install_requires=['setuptools', 'numpy'],
+    # The core needs numpy; the node needs rclpy and the ROS message packages (from ROS or,
+    # for a plain pip install, the ros-jazzy-* wheels listed in requirements.txt); the offline
+    # tools (replay, simulate, evaluate, demo) read and write bags with rosbags and YAML.
+    install_requires=['setuptools', 'numpy>=1.24', 'pyyaml', 'rosbags>=0.10'],
+    extras_require={'pathfinder': ['h5py'], 'plots': ['matplotlib'],
+                    'test': ['pytest', 'hypothesis']},
     zip_safe=True,
     maintainer='slip_estimator developers',
     maintainer_email='slip-estimator@example.org',
     description='Proprioceptive wheel-slip estimation for planetary rovers (INS + error-state EKF).',
     license='MIT',
-    tests_require=['pytest'],
     entry_points={
         'console_scripts': [
             # `ros2 run slip_estimator slip_estimator_node` and the plain console script.

@@ -24,7 +24,9 @@ def _demo(argv: list[str]) -> int:
         'slip confusion matrix and the drift.'))
     parser.add_argument('--out', default='demo_output', help='output folder (default: %(default)s)')
     parser.add_argument('--seed', type=int, default=0, help='trajectory seed')
-    parser.add_argument('--scenario', choices=('default', 'short'), default='default')
+    parser.add_argument('--scenario', choices=('default', 'short', 'mixed', 'patches', 'rough'),
+                        default='default', help='simulated drive (wheel-rate control; mixed '
+                        'adds wheels spinning up at an unchanged body speed)')
     args = parser.parse_args(argv)
     from slip_estimator.replay import replay_main
     from slip_estimator.report import evaluate_main
@@ -78,12 +80,23 @@ COMMANDS = {
 }
 
 
+def usage() -> str:
+    """The command list, from the module docstring's table."""
+    table = __doc__.split('-----------\n', 1)[1].strip()
+    return ('usage: slip-estimator COMMAND [ARGS...]   (slip-estimator COMMAND --help for its '
+            'options)\n\ncommands:\n' + '\n'.join('  ' + line for line in table.splitlines()))
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``slip-estimator`` console script."""
     argv = sys.argv[1:] if argv is None else argv
-    if not argv or argv[0] in ('-h', '--help') or argv[0] not in COMMANDS:
-        print(__doc__.strip())
-        return 0 if argv and argv[0] in ('-h', '--help') else 2
+    if not argv or argv[0] in ('-h', '--help'):
+        print(usage())
+        return 0 if argv else 2
+    if argv[0] not in COMMANDS:
+        print(f"slip-estimator: unknown command '{argv[0]}' (one of: {', '.join(COMMANDS)}; "
+              'see slip-estimator --help)', file=sys.stderr)
+        return 2
     return int(COMMANDS[argv[0]](argv[1:]) or 0)
 
 

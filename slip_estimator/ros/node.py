@@ -211,12 +211,25 @@ class SlipEstimatorNode(Node):
         return SetParametersResult(successful=True)
 
 
+NODE_HELP = """usage: slip-estimator-node [--ros-args --params-file FILE.yaml -r FROM:=TO ...]
+
+The slip_estimator ROS 2 node (also `ros2 run slip_estimator slip_estimator_node`).
+Inputs: /imu/data (sensor_msgs/Imu), /joint_states or /wheel/odometry (parameter
+wheel_input). Outputs: /slip_estimator/odometry, /slip_estimator/slip,
+/slip_estimator/slip_ratio, /diagnostics. Every parameter, with its unit and range:
+`slip-estimator default-config`."""
+
+
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``slip-estimator-node`` / ``ros2 run slip_estimator slip_estimator_node``.
 
     Returns 0 on a normal shutdown (Ctrl-C, external shutdown) and 2 when a parameter is
     invalid (the node refuses to start).
     """
+    argv = sys.argv[1:] if args is None else list(args)
+    if '-h' in argv or '--help' in argv:
+        print(NODE_HELP)
+        return 0
     rclpy.init(args=args)
     node = None
     try:
