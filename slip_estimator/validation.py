@@ -1024,6 +1024,13 @@ def _delta(study: Study, a: str, b: str, metric: str, log: str = RTK_LOG,
     return f'{_f(ra.metrics.get(metric), d)} -> {_f(rb.metrics.get(metric), d)}'
 
 
+def _slip_cell(m: dict[str, Any], digits: int, extra: str, tail: str) -> str:
+    """'balanced (recall medium / high / extreme<extra>), F1 f1, <tail>' of one run."""
+    rec = m['recall']
+    return (f'{_f(m["balanced_accuracy"], digits)} ({_f(rec[2], 2)} / {_f(rec[3], 2)} / '
+            f'{_f(rec[4], 2)}{extra}), F1 {_f(m["sig_f1"], 2)}, {tail}')
+
+
 def _pattern_section(rows: list[dict[str, Any]] | None) -> list[str]:
     """C against D over several injection patterns (the spread behind one table row)."""
     if not rows:
@@ -1033,10 +1040,7 @@ def _pattern_section(rows: list[dict[str, Any]] | None) -> list[str]:
         cells = [', '.join(f'x{f} {a:.0f}-{b:.0f} s' for a, b, f in r['pattern'])]
         for key in ('C', 'D'):
             m = r[key]
-            rec = m['recall']
-            cells.append(f'{_f(m["balanced_accuracy"])} ({_f(rec[2], 2)} / {_f(rec[3], 2)} / '
-                         f'{_f(rec[4], 2)}, n = {m["n_truth"][4]}), F1 {_f(m["sig_f1"], 2)}, '
-                         f'MAE {_f(m["slip_mae"])}')
+            cells.append(_slip_cell(m, 3, f', n = {m["n_truth"][4]}', f'MAE {_f(m["slip_mae"])}'))
         table.append(cells)
     return (['Across injection patterns (core runs on test17run, RTK truth; balanced accuracy '
              '(recall medium / high / extreme, extreme truth samples), significant-slip F1, '
@@ -1081,10 +1085,7 @@ def body_side_section(rows: list[dict[str, Any]] | None) -> list[str]:
         cells = [f'{r["kind"]}: {what}']
         for key in keys:
             m = r[key]
-            rec = m['recall']
-            cells.append(f'{_f(m["balanced_accuracy"], 2)} ({_f(rec[2], 2)} / {_f(rec[3], 2)} / '
-                         f'{_f(rec[4], 2)}), F1 {_f(m["sig_f1"], 2)}, '
-                         f'{_f(m["v_rmse"], 3)} m/s')
+            cells.append(_slip_cell(m, 2, '', f'{_f(m["v_rmse"], 3)} m/s'))
         table.append(cells)
     mean = {k: np.mean([r[k]['balanced_accuracy'] for r in rows if r['kind'] == 'body'])
             for k in keys}
