@@ -33,6 +33,7 @@ from collections import deque
 import numpy as np
 
 from slip_estimator.core import frames, kalman
+from slip_estimator.core.alignment import MotionStart, level
 from slip_estimator.core.detectors import StationaryDetector, TurnDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.error_model import (
@@ -65,6 +66,7 @@ from slip_estimator.core.types import (
 )
 
 _NS = 1_000_000_000
+_MOTION_TILT_STD_RAD = 0.02  # roll/pitch 1-sigma after an in-motion start (wheel-derived accel)
 _HISTORY_S = 2.0
 _HISTORY_NS = int(_HISTORY_S * _NS)
 _MAX_PENDING_WHEEL = 50
@@ -128,6 +130,7 @@ class SlipEstimator:
             max(2, int(round(p.stationary_window_s * 250.0))), p.stationary_accel_std,
             p.stationary_gyro_std, p.stationary_wheel_speed_mps, int(p.wheel_timeout_s * _NS))
         self._align_rows: list[np.ndarray] = []
+        self._motion = MotionStart()
         self._acc_tau = 0.0
         # Per-sample accumulators as lists of floats (numpy costs ~1 us per 3-vector operation;
         # the element-wise float sums are the same).
@@ -244,6 +247,8 @@ class SlipEstimator:
             self.timing.add_wheel(sample.stamp_ns,
                                   sample.rim_speed_right_mps - sample.rim_speed_left_mps)
         self._pending.append(sample)
+        if self.state is None:
+            self._motion.add_wheel(sample.stamp_ns, sample.rim_speed_mps)
         if len(self._pending) > _MAX_PENDING_WHEEL:
             # Wheel stamps far ahead of the IMU (clock offset or IMU dropout): keep the newest.
             self._pending.popleft()
@@ -324,27 +329,53 @@ class SlipEstimator:
     # ------------------------------------------------------------------ alignment
     def _collect_alignment(self, f_b: np.ndarray, w_b: np.ndarray, stamp_ns: int) -> None:
         p = self.params
+        self._motion.add_imu(stamp_ns, f_b, w_b)
         if not self.stationary.is_stationary(stamp_ns):
             self._align_rows.clear()
+            if (stamp_ns - self._motion.first_ns >= p.motion_alignment_after_s * _NS
+                    and self._motion.ready(stamp_ns)):
+                self._align_in_motion(stamp_ns)
             return
         self._align_rows.append(np.concatenate([f_b, w_b]))
         if len(self._align_rows) * self._nominal_dt >= p.alignment_duration_s:
-            self._align(np.array(self._align_rows), stamp_ns)
+            rows = np.array(self._align_rows)
+            self._align(rows[:, :3].mean(axis=0), rows[:, 3:].mean(axis=0), stamp_ns)
 
-    def _align(self, rows: np.ndarray, stamp_ns: int) -> None:
-        """Static alignment (Groves sec. 5.6.2): levelling from the mean specific force."""
+    def _align_in_motion(self, stamp_ns: int) -> None:
+        """No stationary window came (a robot moving from its first second, or an IMU too
+        noisy for the stationarity thresholds): level on the specific force less the
+        wheel-derived acceleration (:mod:`slip_estimator.core.alignment`), start the velocity
+        from the rim speed with a wide covariance, the gyro bias at zero, and report slip
+        'unknown' for ``recovery_s`` while the wheels re-anchor the velocity (zero slip
+        assumed). A later stop's ZUPT/ZARU refine it."""
         p = self.params
-        f = rows[:, :3].mean(axis=0)
-        w = rows[:, 3:].mean(axis=0)
-        roll = math.atan2(-f[1], -f[2])
-        pitch = math.atan2(f[0], math.hypot(f[1], f[2]))
+        self._align(self._motion.specific_force(), None, stamp_ns)
+        st = self.state
+        speed, _ = self._motion.speed_and_accel()
+        st.v_eb_n = st.C_b_n[:, 0] * speed
+        d = self.P.diagonal().copy()
+        tilt_var = max(p.initial_attitude_std, _MOTION_TILT_STD_RAD) ** 2
+        self.P[0, 0] += tilt_var - d[0]
+        self.P[1, 1] += tilt_var - d[1]
+        self.P[VEL, VEL] = (0.1 + 0.2 * abs(speed)) ** 2
+        self.slip_model.reset(from_rest=False)
+        self._recovering_until_ns = stamp_ns + int(p.recovery_s * _NS)
+        self._event(f'aligned in motion (no stationary window in '
+                    f'{p.motion_alignment_after_s:.1f} s): slip unknown for {p.recovery_s:.0f} s')
+
+    def _align(self, f: np.ndarray, w: np.ndarray | None, stamp_ns: int) -> None:
+        """Levelling from the specific force ``f`` (minus gravity, Groves sec. 5.6.2); the gyro
+        bias from the mean rate ``w`` at rest (None in motion: zero)."""
+        p = self.params
+        roll, pitch = level(f)
         C_b_n = frames.rpy_to_dcm(roll, pitch, math.radians(p.initial_heading_deg))
         llh = np.array([math.radians(p.initial_latitude_deg),
                         math.radians(p.initial_longitude_deg), p.initial_height_m])
         # Position of the IMU; the parameters give base_link's.
         r_imu_b = -self.l_bw_b
         llh = llh - curvilinear_to_ned(self.planet, llh[0], llh[2]) @ (-(C_b_n @ r_imu_b))
-        b_g = w - C_b_n.T @ earth_rate_n(self.planet, llh[0])
+        b_g = (np.zeros(3) if w is None
+               else w - C_b_n.T @ earth_rate_n(self.planet, llh[0]))
         self.state = NavState(C_b_n, np.zeros(3), llh, np.zeros(3), b_g)
         # Base_link position at alignment: the origin of odom.
         self._g_mps2 = float(np.linalg.norm(f))
@@ -717,7 +748,8 @@ class SlipEstimator:
         values: dict = dict(self.counters)
         if self.state is None:
             recent = '; '.join(dict.fromkeys(text for _, text in self._events))
-            return Health(1, 'aligning: waiting for a stationary window'
+            return Health(1, 'aligning: waiting for a stationary window or '
+                          f'{self.params.motion_alignment_after_s:.1f} s of IMU and wheel data'
                           + (f' (after: {recent})' if recent else ''), values)
         st = self.state
         sig = np.sqrt(np.maximum(np.diag(self.P), 0.0))

@@ -128,6 +128,8 @@ class Params:
     turn_rate_threshold: float = _p(0.25, 'rad/s', 'above this yaw rate the lateral '
                                     'non-holonomic constraint is suspended (skid-steer turn)',
                                     0.0, 10.0)
+    motion_alignment_after_s: float = _p(1.5, 's', 'without a stationary window for this long '
+                                         '(and with wheel data), align in motion', 0.5, 3600.0)
     alignment_duration_s: float = _p(2.0, 's', 'stationary time used for initial alignment',
                                      0.1, 600.0)
     # --- slip ---------------------------------------------------------------------------------------
