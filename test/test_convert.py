@@ -229,3 +229,51 @@ def test_health_diagnostics_formatting():
     assert convert.message_is_finite(diag)
     diag.status[0].values[0].value = 'nan'
     assert not convert.message_is_finite(diag)
+
+
+def _positions_msg(stamp_ns: int, positions):
+    msg = joint_msg(stamp_ns, NAMES, [])
+    msg.position = [float(x) for x in positions]
+    return msg
+
+
+def test_positions_only_joint_states_give_rates_from_differences():
+    """velocity empty, positions present: the first message seeds, the next ones give
+    r * dtheta/dt; a wrap at +-pi is unwrapped; an encoder reset is rejected and re-seeds."""
+    r = 0.1
+    rates = convert.JointRatesFromPositions(max_rate_rps=30.0)
+    ns = 100_000_000  # 10 Hz
+
+    def call(k, pos):
+        return convert.wheel_from_joint_state(_positions_msg(1 + k * ns, pos), NAMES, r,
+                                              from_positions=rates)
+
+    assert call(0, [0.0, 0.0, 0.0, 0.0]) == convert.REASON_FIRST_POSITION
+    s = call(1, [0.5, 0.7, 0.5, 0.7])  # left 5 rad/s, right 7 rad/s
+    assert s.rim_speed_left_mps == pytest.approx(0.5)
+    assert s.rim_speed_right_mps == pytest.approx(0.7)
+    assert s.rim_speed_mps == pytest.approx(0.6)
+    # positions wrapped to +-pi: 3.0 -> -3.0 is +0.283 rad, not -6 rad
+    call(2, [3.0, 3.0, 3.0, 3.0])
+    s = call(3, [-3.0, -3.0, -3.0, -3.0])
+    assert s.rim_speed_mps == pytest.approx(r * (2.0 * math.pi - 6.0) / 0.1)
+    # encoder reset: a jump of 50 rad in 0.1 s is no wheel motion
+    assert call(4, [47.0, 47.0, 47.0, 47.0]) == convert.REASON_POSITION_RESET
+    s = call(5, [47.1, 47.1, 47.1, 47.1])
+    assert s.rim_speed_mps == pytest.approx(0.1)
+    # without the helper a positions-only message is still 'no_velocity'
+    assert (convert.wheel_from_joint_state(_positions_msg(7, [0.0] * 4), NAMES, r)
+            == convert.REASON_NO_VELOCITY)
+
+
+def test_node_adapter_accepts_positions_only_joint_states():
+    from slip_estimator.core.params import Params
+    from slip_estimator.ros.adapter import SlipEstimatorAdapter
+
+    adapter = SlipEstimatorAdapter(Params().replace(wheel_input='joint_states',
+                                           wheel_joint_names=list(NAMES)))
+    for k in range(5):
+        adapter.on_joint_states(_positions_msg(1 + k * 100_000_000, [0.1 * k] * 4))
+    topic = '/joint_states'
+    assert adapter.received[topic] == 5
+    assert dict(adapter.rejected) == {(topic, convert.REASON_FIRST_POSITION): 1}

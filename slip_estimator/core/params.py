@@ -97,9 +97,8 @@ class Params:
     gyro_range_rps: float = _p(0.0, 'rad/s', 'gyro measurement range, for clipping detection '
                                '(0 = unknown)', 0.0, 1000.0)
     wheel_aid: str = _p('hold', '', 'forward-velocity aid from the rim speed: off (the paper) '
-                        'or hold (the slip model: slip changes detected on the wheel or the body side, '
-                        'measured by the INS, then held)',
-                        choices=('off', 'hold'))
+                        'or hold (the slip model: slip changes detected on the wheel or the '
+                        'body side, measured by the INS, then held)', choices=('off', 'hold'))
     slip_measure_s: float = _p(0.5, 's', 'hold mode: unaided INS time to measure a new slip',
                                0.1, 30.0)
     slip_continuity_sigma: float = _p(2.0, '', 'hold mode: a body-speed change across a slip '
@@ -108,8 +107,8 @@ class Params:
     slip_baseline: str = _p('snap', '', 'hold mode: snap (a re-measured slip within the change '
                             'threshold of the slip measured after the last start from rest '
                             'is that baseline) or off', choices=('snap', 'off'))
-    slip_change_fraction: float = _p(0.1, '', 'hold mode: a discrepancy beyond this '
-                                     'fraction of the rim speed can signal a slip change', 0.01, 1.0)
+    slip_change_fraction: float = _p(0.1, '', 'hold mode: a discrepancy beyond this fraction '
+                                     'of the rim speed can signal a slip change', 0.01, 1.0)
     slip_change_sigma: float = _p(3.5, '', 'hold mode: the slip-change threshold is at least '
                                   'this many 1-s spreads of the free wheel/INS residual '
                                   '(measured online)', 0.0, 20.0)

@@ -99,6 +99,8 @@ class SlipEstimatorAdapter:
         self.params = params
         self._core = self._factory(params)
         self._C_imu_b = frames.imu_to_body_dcm(params.imu_to_base_rpy)
+        self._joint_rates = convert.JointRatesFromPositions(
+            params.max_wheel_speed_mps / params.wheel_radius)
         self._frame_is_finite_text = convert.text_is_finite(params.base_frame)
         self._odom_period_ns = (0 if params.odometry_rate_hz == 0.0
                                 else round(1e9 / params.odometry_rate_hz))
@@ -194,7 +196,8 @@ class SlipEstimatorAdapter:
         """Process one ``sensor_msgs/JointState`` (wheel angular velocities)."""
         p = self.params
         sample = convert.wheel_from_joint_state(msg, p.wheel_joint_names, p.wheel_radius,
-                                                max_speed_mps=p.max_wheel_speed_mps)
+                                                max_speed_mps=p.max_wheel_speed_mps,
+                                                from_positions=self._joint_rates)
         return self._on_wheel(TOPIC_JOINT_STATES, sample)
 
     def on_wheel_odometry(self, msg: Odometry) -> list[Output]:

@@ -58,6 +58,8 @@ REASON_ABSURD_IMU = 'absurd_imu'
 REASON_ABSURD_SPEED = 'absurd_wheel_speed'
 REASON_NO_WHEEL_JOINTS = 'no_wheel_joints'
 REASON_NO_VELOCITY = 'no_velocity'
+REASON_FIRST_POSITION = 'first_position'  # positions only: a rate needs the next message
+REASON_POSITION_RESET = 'position_reset'  # positions only: a jump no wheel can turn
 
 SLIP_STATUS_NAME = 'slip_estimator: wheel slip'
 HEALTH_STATUS_NAME = 'slip_estimator: estimator'
@@ -152,14 +154,48 @@ def wheel_side(joint_name: str) -> str | None:
     return 'left' if is_left else 'right'
 
 
+class JointRatesFromPositions:
+    """Wheel rates from the position differences of consecutive joint states, for drivers
+    that publish positions only (``velocity`` empty).
+
+    A difference of about a full turn is a position wrapped to +-pi crossing the cut; a jump
+    no wheel can turn in the interval (beyond ``max_rate_rps``) is a reset of the encoder
+    count: that sample is rejected and differencing restarts from it.
+    """
+
+    def __init__(self, max_rate_rps: float) -> None:
+        self.max_rate_rps = max_rate_rps
+        self._last: tuple[int, dict[str, float]] | None = None
+
+    def rates(self, stamp_ns: int, positions: dict[str, float]) -> dict[str, float] | str:
+        last, self._last = self._last, (stamp_ns, positions)
+        if last is None or not set(positions) & set(last[1]) or stamp_ns <= last[0]:
+            return REASON_FIRST_POSITION
+        dt = (stamp_ns - last[0]) * 1e-9
+        out = {}
+        for name, pos in positions.items():
+            if name not in last[1]:
+                continue
+            d = pos - last[1][name]
+            if abs(abs(d) - 2.0 * math.pi) <= self.max_rate_rps * dt:
+                d -= math.copysign(2.0 * math.pi, d)  # wrapped at +-pi
+            if abs(d) > self.max_rate_rps * dt:
+                return REASON_POSITION_RESET
+            out[name] = d / dt
+        return out
+
+
 def wheel_from_joint_state(msg: JointState, names: Sequence[str], radius: float, *,
-                           max_speed_mps: float = math.inf) -> WheelSample | str:
+                           max_speed_mps: float = math.inf,
+                           from_positions: JointRatesFromPositions | None = None
+                           ) -> WheelSample | str:
     """Rim speeds ``r * omega`` from the wheel joint velocities of a ``sensor_msgs/JointState``.
 
     ``names`` are the driven wheels (rad/s, forward positive). Wheels listed in ``names`` but
     absent from the message are left out of the means (several publishers may share
     ``/joint_states``); a message without any of them is rejected as ``'no_wheel_joints'``.
-    The per-side means use the joints whose name contains 'left' / 'right'.
+    The per-side means use the joints whose name contains 'left' / 'right'. Without
+    velocities, ``from_positions`` (when given) differentiates the positions.
     """
     stamp_ns = header_stamp_ns(msg)
     if stamp_ns <= 0:  # zero (never set) or before the epoch: not a usable time
@@ -169,9 +205,19 @@ def wheel_from_joint_state(msg: JointState, names: Sequence[str], radius: float,
     if not present:
         return REASON_NO_WHEEL_JOINTS
     velocity = msg.velocity
-    if len(velocity) != len(msg.name):
+    if len(velocity) == len(msg.name):
+        speeds = [radius * float(velocity[index[n]]) for n in present]
+    elif from_positions is not None and len(msg.position) == len(msg.name):
+        positions = {n: float(msg.position[index[n]]) for n in present}
+        if not all(math.isfinite(v) for v in positions.values()):
+            return REASON_NON_FINITE
+        rates = from_positions.rates(stamp_ns, positions)
+        if isinstance(rates, str):
+            return rates
+        present = [n for n in present if n in rates]
+        speeds = [radius * rates[n] for n in present]
+    else:
         return REASON_NO_VELOCITY
-    speeds = [radius * float(velocity[index[n]]) for n in present]
     if not all(math.isfinite(v) for v in speeds):
         return REASON_NON_FINITE
     if max(abs(v) for v in speeds) > max_speed_mps:
