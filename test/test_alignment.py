@@ -89,3 +89,29 @@ def test_in_motion_attitude_error_is_within_a_degree():
     down_est_flu = down_est_frd * np.array([1.0, -1.0, -1.0])
     angle = math.degrees(math.acos(np.clip(down_true_flu @ down_est_flu, -1.0, 1.0)))
     assert angle < 1.0
+
+
+@pytest.mark.parametrize('scale, rotate_deg, expected', [
+    (1.0, 0.0, None),
+    (0.0, 0.0, 'gravity removed'),
+    (1.0 / 9.81, 0.0, 'acceleration in g'),
+    (1.0, 90.0, 'imu_to_base_rpy'),
+])
+def test_non_rep145_imus_are_named_and_not_aligned_on(scale, rotate_deg, expected):
+    """The same drive with the IMU's gravity removed, in g, or mounted 90 deg off its declared
+    rotation: named at start in the health message (ERROR), no estimate."""
+    r = simulate(short_scenario(0))
+    p = sim_params(r)
+    d = simulation_data(r, p)
+    f = d.f_ib_b * scale if scale else d.f_ib_b - np.median(d.f_ib_b[:500], axis=0)
+    f = f @ rpy_to_dcm(math.radians(rotate_deg), 0.0, 0.0).T
+    cut = d.imu_ns < d.imu_ns[0] + int(20e9)
+    d = dataclasses.replace(d, imu_ns=d.imu_ns[cut], f_ib_b=f[cut], omega_ib_b=d.omega_ib_b[cut])
+    est, out, odo = run_core(p, d)
+    health = est.health()
+    if expected is None:
+        assert est.aligned and health.level < 2
+    else:
+        assert not est.aligned and len(odo) == 0
+        assert health.level == 2 and expected in health.message
+        assert all(o.slip_class <= 0 for o in out)

@@ -26,6 +26,31 @@ import numpy as np
 _NS = 1_000_000_000
 
 
+def specific_force_problem(f_mean_b: np.ndarray, gravity_mps2: float) -> str | None:
+    """What is wrong with an IMU whose mean specific force at alignment is ``f_mean_b`` (body
+    FRD after the declared mounting), or None. REP-145 asks for the specific force in m/s^2
+    with gravity in it: at rest or cruising it points up, with the planet's gravity as its
+    magnitude (an acceleration moves it by a small fraction)."""
+    f = np.asarray(f_mean_b, dtype=float)
+    norm = float(np.linalg.norm(f))
+    if abs(norm / gravity_mps2 - 1.0) <= 0.3:
+        tilt = math.degrees(math.acos(max(-1.0, min(1.0, -f[2] / norm))))
+        if tilt > 45.0:
+            return (f'gravity is {tilt:.0f} deg off the declared body z axis (specific force '
+                    f'{f[0]:+.2f}, {f[1]:+.2f}, {f[2]:+.2f} m/s^2 in FRD): imu_to_base_rpy does '
+                    'not describe how the IMU is mounted')
+        return None
+    if abs(norm - 1.0) <= 0.3:
+        return (f'specific force magnitude {norm:.2f}: acceleration in g, not m/s^2 (REP-145); '
+                'scale it by 9.81 in the driver')
+    if norm < 0.3 * gravity_mps2:
+        return (f'specific force magnitude {norm:.2f} m/s^2 where gravity is '
+                f'{gravity_mps2:.2f}: gravity removed (linear acceleration, not REP-145 '
+                'specific force); publish the raw accelerometer')
+    return (f'specific force magnitude {norm:.2f} m/s^2 where gravity is {gravity_mps2:.2f}: '
+            'wrong units or scale')
+
+
 def level(f_b: np.ndarray) -> tuple[float, float]:
     """Roll and pitch (rad, FRD body in NED) from a specific force that is minus gravity."""
     roll = math.atan2(-f_b[1], -f_b[2])

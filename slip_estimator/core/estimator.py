@@ -33,7 +33,7 @@ from collections import deque
 import numpy as np
 
 from slip_estimator.core import frames, kalman
-from slip_estimator.core.alignment import MotionStart, level
+from slip_estimator.core.alignment import MotionStart, level, specific_force_problem
 from slip_estimator.core.detectors import StationaryDetector, TurnDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.error_model import (
@@ -131,6 +131,7 @@ class SlipEstimator:
             p.stationary_gyro_std, p.stationary_wheel_speed_mps, int(p.wheel_timeout_s * _NS))
         self._align_rows: list[np.ndarray] = []
         self._motion = MotionStart()
+        self.imu_problem: str | None = None
         self._acc_tau = 0.0
         # Per-sample accumulators as lists of floats (numpy costs ~1 us per 3-vector operation;
         # the element-wise float sums are the same).
@@ -333,13 +334,23 @@ class SlipEstimator:
         if not self.stationary.is_stationary(stamp_ns):
             self._align_rows.clear()
             if (stamp_ns - self._motion.first_ns >= p.motion_alignment_after_s * _NS
-                    and self._motion.ready(stamp_ns)):
+                    and self._motion.ready(stamp_ns)
+                    and not self._imu_refused(self._motion.mean_imu()[0])):
                 self._align_in_motion(stamp_ns)
             return
         self._align_rows.append(np.concatenate([f_b, w_b]))
         if len(self._align_rows) * self._nominal_dt >= p.alignment_duration_s:
             rows = np.array(self._align_rows)
-            self._align(rows[:, :3].mean(axis=0), rows[:, 3:].mean(axis=0), stamp_ns)
+            if not self._imu_refused(rows[:, :3].mean(axis=0)):
+                self._align(rows[:, :3].mean(axis=0), rows[:, 3:].mean(axis=0), stamp_ns)
+
+    def _imu_refused(self, f_mean_b: np.ndarray) -> bool:
+        """An IMU that does not follow REP-145 (gravity removed, g units, mounted otherwise
+        than declared) is named and not aligned on: no estimate beats a wrong one."""
+        g_n = gravity_n(self.planet, math.radians(self.params.initial_latitude_deg),
+                        self.params.initial_height_m)
+        self.imu_problem = specific_force_problem(f_mean_b, float(np.linalg.norm(g_n)))
+        return self.imu_problem is not None
 
     def _align_in_motion(self, stamp_ns: int) -> None:
         """No stationary window came (a robot moving from its first second, or an IMU too
@@ -746,6 +757,8 @@ class SlipEstimator:
     def health(self) -> Health:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""
         values: dict = dict(self.counters)
+        if self.state is None and self.imu_problem is not None:
+            return Health(2, f'IMU not usable, not aligning: {self.imu_problem}', values)
         if self.state is None:
             recent = '; '.join(dict.fromkeys(text for _, text in self._events))
             return Health(1, 'aligning: waiting for a stationary window or '
