@@ -115,3 +115,18 @@ def test_non_rep145_imus_are_named_and_not_aligned_on(scale, rotate_deg, expecte
         assert not est.aligned and len(odo) == 0
         assert health.level == 2 and expected in health.message
         assert all(o.slip_class <= 0 for o in out)
+
+
+@pytest.mark.parametrize('rate_imu_hz, rate_wheel_hz', [(50.0, 10.0), (100.0, 50.0)])
+def test_other_imu_rates_align_and_estimate(rate_imu_hz, rate_wheel_hz):
+    """Windows are in seconds: at 50 and 100 Hz the stationarity window holds 0.5 s of the
+    IMU's own samples, the static alignment happens in the first stop and slip is read."""
+    cfg = short_scenario(0).replace(rate_imu_hz=rate_imu_hz, rate_wheel_hz=rate_wheel_hz,
+                                    rate_truth_hz=rate_wheel_hz)
+    r = simulate(cfg)
+    p = sim_params(r)
+    est, out, odo = run_core(p, simulation_data(r, p))
+    assert est.stationary.window_samples == round(p.stationary_window_s * rate_imu_hz)
+    assert (odo[0, 0] - r.stamps_ns(r.imu_t_s)[0]) * 1e-9 < 5.0
+    moving = [o for o in out if o.slip_class > 0]
+    assert len(moving) > 0.5 * rate_wheel_hz * 40

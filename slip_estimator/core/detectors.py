@@ -60,6 +60,11 @@ class ImuWindow:
         return min(self._n + len(self._queue) // 6, len(self._buf))
 
     @property
+    def size(self) -> int:
+        """Nominal number of samples (the window is full at this many)."""
+        return len(self._buf)
+
+    @property
     def full(self) -> bool:
         """True once the window holds its nominal number of samples."""
         return self.n == len(self._buf)
@@ -105,6 +110,15 @@ class StationaryDetector:
         self.wheel_timeout_ns = wheel_timeout_ns
         self._wheel_stamp_ns: int | None = None
         self._wheels_stopped = False
+
+    @property
+    def window_samples(self) -> int:
+        """Nominal number of samples in the IMU window."""
+        return self.window.size
+
+    def resize(self, window_samples: int) -> None:
+        """A new (empty) IMU window of ``window_samples`` (the IMU rate became known)."""
+        self.window = ImuWindow(window_samples)
 
     def add_imu(self, f_ib_b: Sequence[float], omega_ib_b: Sequence[float]) -> None:
         """Feed one IMU sample."""

@@ -66,6 +66,7 @@ from slip_estimator.core.types import (
 )
 
 _NS = 1_000_000_000
+_RATE_SAMPLES = 10  # IMU intervals whose median sets the nominal rate
 _MOTION_TILT_STD_RAD = 0.02  # roll/pitch 1-sigma after an in-motion start (wheel-derived accel)
 _HISTORY_S = 2.0
 _HISTORY_NS = int(_HISTORY_S * _NS)
@@ -126,6 +127,7 @@ class SlipEstimator:
         self.P = np.zeros((N_ERR, N_ERR))
         self.stamp_ns: int | None = None
         self._nominal_dt = 1.0 / 250.0
+        self._first_dts: list[float] | None = []  # until the IMU rate is known
         self.stationary = StationaryDetector(
             max(2, int(round(p.stationary_window_s * 250.0))), p.stationary_accel_std,
             p.stationary_gyro_std, p.stationary_wheel_speed_mps, int(p.wheel_timeout_s * _NS))
@@ -197,6 +199,8 @@ class SlipEstimator:
                 # Not integrated across: one sample says nothing about minutes of motion.
                 self._recover(sample.stamp_ns, dt, 'IMU gap')
                 return self._due_slip()
+        elif self._first_dts is not None:
+            self._learn_rate(dt)
         else:
             self._nominal_dt = 0.99 * self._nominal_dt + 0.01 * dt
         # 2. alignment
@@ -343,6 +347,19 @@ class SlipEstimator:
             rows = np.array(self._align_rows)
             if not self._imu_refused(rows[:, :3].mean(axis=0)):
                 self._align(rows[:, :3].mean(axis=0), rows[:, 3:].mean(axis=0), stamp_ns)
+
+    def _learn_rate(self, dt: float) -> None:
+        """The IMU's own rate, from the median of its first intervals: every window that is
+        defined in seconds (stationarity, alignment) then holds that many of its samples,
+        whatever the rate (20-1000 Hz)."""
+        self._first_dts.append(dt)
+        if len(self._first_dts) < _RATE_SAMPLES:
+            return
+        self._nominal_dt = float(np.median(self._first_dts))
+        self._first_dts = None
+        n = max(2, int(round(self.params.stationary_window_s / self._nominal_dt)))
+        if n != self.stationary.window_samples:
+            self.stationary.resize(n)
 
     def _imu_refused(self, f_mean_b: np.ndarray) -> bool:
         """An IMU that does not follow REP-145 (gravity removed, g units, mounted otherwise
