@@ -130,3 +130,20 @@ def test_other_imu_rates_align_and_estimate(rate_imu_hz, rate_wheel_hz):
     assert (odo[0, 0] - r.stamps_ns(r.imu_t_s)[0]) * 1e-9 < 5.0
     moving = [o for o in out if o.slip_class > 0]
     assert len(moving) > 0.5 * rate_wheel_hz * 40
+
+
+def test_a_noisy_consumer_imu_still_finds_its_stops():
+    """Rest noise above the configured stationarity limits (accel 4x, gyro 12x the tactical
+    IMU: ~0.06 m/s^2 and 0.02 rad/s at 250 Hz, like the consumer IMUs users bring): the
+    detector learns the IMU's own spread while the wheels are stopped, so the ZUPT and ZARU
+    fire at the stops; with the limits fixed they never would."""
+
+    base = short_scenario(0)
+    imu = dataclasses.replace(base.imu, accel_noise_density_mps2_rthz=4.0e-3,
+                              gyro_noise_density_rps_rthz=1.2e-3)
+    r = simulate(base.replace(imu=imu))
+    p = sim_params(r)
+    est, out, odo = run_core(p, simulation_data(r, p))
+    assert est.stationary.rest_std is not None
+    assert est.stationary.thresholds()[1] > p.stationary_gyro_std
+    assert est.counters['zupt'] > 50 and est.counters['zaru'] > 50

@@ -91,6 +91,15 @@ class ImuWindow:
         return self._var
 
 
+_REST_MARGIN = 1.5
+"""A window counts as steady up to this many times the IMU's spread at rest."""
+_REST_SETTLE_NS = 1_000_000_000
+"""The wheels stopped this long ago: the body has stopped rocking after braking."""
+_REST_ACCEL_LIMIT_MPS2 = 0.5
+_REST_GYRO_LIMIT_RPS = 0.1
+"""Beyond these a window with the wheels stopped is motion (pushed, sliding), not noise."""
+
+
 class StationaryDetector:
     """Stationary when, over a window, the specific force and the gyro rates are steady
     and every wheel is (nearly) stopped.
@@ -110,6 +119,10 @@ class StationaryDetector:
         self.wheel_timeout_ns = wheel_timeout_ns
         self._wheel_stamp_ns: int | None = None
         self._wheels_stopped = False
+        self._stopped_since_ns: int | None = None
+        # The IMU's own spread at rest (accel m/s^2, gyro rad/s), learned while the wheels
+        # have been stopped for a window: the thresholds never sit below its noise.
+        self.rest_std: list[float] | None = None
 
     @property
     def window_samples(self) -> int:
@@ -128,6 +141,10 @@ class StationaryDetector:
         """Feed the largest absolute rim speed of one wheel sample."""
         self._wheel_stamp_ns = stamp_ns
         self._wheels_stopped = max_abs_rim_speed_mps <= self.wheel_speed_max_mps
+        if not self._wheels_stopped:
+            self._stopped_since_ns = None
+        elif self._stopped_since_ns is None:
+            self._stopped_since_ns = stamp_ns
 
     def wheels_recent(self, now_ns: int) -> bool:
         """True when a wheel sample arrived within the wheel timeout."""
@@ -141,13 +158,40 @@ class StationaryDetector:
         # Per-axis spread: the specific-force norm barely changes when the rover starts to
         # accelerate horizontally (sqrt(g^2 + a^2) ~ g), the axes do.
         v = self.window.variance().tolist()
-        return (all(math.sqrt(x) <= self.accel_std_max_mps2 for x in v[:3])
-                and all(math.sqrt(x) <= self.gyro_std_max_rps for x in v[3:]))
+        accel_max, gyro_max = self.thresholds()
+        return (all(math.sqrt(x) <= accel_max for x in v[:3])
+                and all(math.sqrt(x) <= gyro_max for x in v[3:]))
+
+    def thresholds(self) -> tuple[float, float]:
+        """Accelerometer and gyro std limits: the configured ones, or _REST_MARGIN times the
+        spread this IMU shows at rest if that is larger (a consumer MEMS IMU is noisier at
+        rest than the configured limits)."""
+        if self.rest_std is None:
+            return self.accel_std_max_mps2, self.gyro_std_max_rps
+        return (max(self.accel_std_max_mps2, _REST_MARGIN * self.rest_std[0]),
+                max(self.gyro_std_max_rps, _REST_MARGIN * self.rest_std[1]))
+
+    def _learn_rest(self, now_ns: int) -> None:
+        """The wheels have been still for a window: the IMU window is its rest noise, unless
+        it is far beyond any IMU's (the rover is being moved)."""
+        if (self._stopped_since_ns is None or not self.window.full
+                or now_ns - self._stopped_since_ns < _REST_SETTLE_NS):
+            return
+        v = self.window.variance().tolist()
+        std = [math.sqrt(max(v[:3])), math.sqrt(max(v[3:]))]
+        if std[0] > _REST_ACCEL_LIMIT_MPS2 or std[1] > _REST_GYRO_LIMIT_RPS:
+            return
+        if self.rest_std is None:
+            self.rest_std = std
+        else:
+            self.rest_std = [r + 0.05 * (x - r) for r, x in zip(self.rest_std, std)]
 
     def is_stationary(self, now_ns: int) -> bool:
         """The decision at ``now_ns``."""
         if self.wheels_recent(now_ns) and not self._wheels_stopped:
             return False
+        if self.wheels_recent(now_ns):
+            self._learn_rest(now_ns)
         return self.imu_steady()
 
 
