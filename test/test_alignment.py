@@ -147,3 +147,29 @@ def test_a_noisy_consumer_imu_still_finds_its_stops():
     assert est.stationary.rest_std is not None
     assert est.stationary.thresholds()[1] > p.stationary_gyro_std
     assert est.counters['zupt'] > 50 and est.counters['zaru'] > 50
+
+
+def test_consumer_imu_at_30_hz_joined_while_moving():
+    """A consumer MEMS IMU at 30 Hz (wheels 10 Hz) on a drive that is already moving when the
+    node starts and never stops afterwards: odometry from the first 2 s, slip known for most
+    of the drive, no NaN. (The accuracy such an IMU supports is not asserted here.)"""
+    from slip_estimator.sim import ImuErrorConfig
+
+    base = short_scenario(0)
+    cfg = base.replace(segments=base.segments[:7], imu=ImuErrorConfig.consumer_mems(),
+                       rate_imu_hz=30.0, rate_wheel_hz=10.0, rate_truth_hz=10.0)
+    cfg = cfg.replace(gnss=dataclasses.replace(cfg.gnss, rate_hz=10.0))
+    r = simulate(cfg)
+    p = sim_params(r)
+    d = simulation_data(r, p)
+    t0 = d.imu_ns[0] + int(22e9)
+    ki, kw = d.imu_ns >= t0, d.wheel_ns >= t0
+    d = dataclasses.replace(d, imu_ns=d.imu_ns[ki], f_ib_b=d.f_ib_b[ki],
+                            omega_ib_b=d.omega_ib_b[ki], wheel_ns=d.wheel_ns[kw],
+                            rim_mps=d.rim_mps[kw])
+    est, out, odo = run_core(p, d, odometry_every=1)
+    assert odo[0, 0] - t0 <= 2e9
+    assert np.isfinite(odo).all()
+    assert est.stationary.window_samples == round(p.stationary_window_s * 30.0)
+    known = [o.slip_class >= 0 for o in out if o.stamp_ns > t0 + int(6e9)]
+    assert np.mean(known) > 0.9

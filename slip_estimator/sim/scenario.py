@@ -218,6 +218,31 @@ class ImuErrorConfig:
         """A perfect IMU (no noise, bias, scale factor or vibration)."""
         return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, VibrationConfig.off())
 
+    @classmethod
+    def tactical(cls) -> ImuErrorConfig:
+        """The default: a tactical-grade MEMS IMU (ADIS16495-like)."""
+        return cls()
+
+    @classmethod
+    def industrial_mems(cls) -> ImuErrorConfig:
+        """An industrial MEMS IMU: noise 5x, turn-on biases 0.1 deg/s and 0.05 m/s^2, 0.1 %
+        scale factors."""
+        return dataclasses.replace(
+            cls(), accel_noise_density_mps2_rthz=5.0e-3, gyro_noise_density_rps_rthz=5.0e-4,
+            accel_bias_sigma_mps2=0.05, gyro_bias_sigma_rps=math.radians(0.1),
+            accel_bias_psd_m2ps5=1.0e-6, gyro_bias_psd_rad2ps3=1.0e-10,
+            accel_scale_factor_sigma=1.0e-3, gyro_scale_factor_sigma=1.0e-3)
+
+    @classmethod
+    def consumer_mems(cls) -> ImuErrorConfig:
+        """A consumer MEMS IMU: noise 10-30x the tactical one, turn-on biases 0.5 deg/s and
+        0.1 m/s^2, 0.5 % scale factors (the phone-grade parts on hobby and research robots)."""
+        return dataclasses.replace(
+            cls(), accel_noise_density_mps2_rthz=1.0e-2, gyro_noise_density_rps_rthz=3.0e-3,
+            accel_bias_sigma_mps2=0.1, gyro_bias_sigma_rps=math.radians(0.5),
+            accel_bias_psd_m2ps5=1.0e-5, gyro_bias_psd_rad2ps3=1.0e-9,
+            accel_scale_factor_sigma=5.0e-3, gyro_scale_factor_sigma=5.0e-3)
+
 
 @dataclass(frozen=True)
 class SiteConfig:
