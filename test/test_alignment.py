@@ -173,3 +173,26 @@ def test_consumer_imu_at_30_hz_joined_while_moving():
     assert est.stationary.window_samples == round(p.stationary_window_s * 30.0)
     known = [o.slip_class >= 0 for o in out if o.stamp_ns > t0 + int(6e9)]
     assert np.mean(known) > 0.9
+
+
+@pytest.mark.parametrize('factor', [1.0, 1.6])
+def test_skid_steer_effective_track_width_is_estimated(factor):
+    """The simulated skid-steer turns need yaw rate x track x factor of wheel differential
+    (times the slip gain of the turning ground): the estimate finds the ratio the true rims
+    and yaw rates give (least squares over the turning samples) and reports it."""
+    from slip_estimator.sim.scenario import WHEEL_IS_LEFT
+
+    base = short_scenario(0)
+    cfg = base.replace(rover=dataclasses.replace(base.rover, effective_track_factor=factor))
+    r = simulate(cfg)
+    p = sim_params(r)
+    est, _, _ = run_core(p, simulation_data(r, p))
+    left = np.array(WHEEL_IS_LEFT)
+    rims = r.rim_speed_true_mps
+    diff = rims[:, ~left].mean(axis=1) - rims[:, left].mean(axis=1)
+    w = r.yaw_rate_true_rps
+    turning = np.abs(w) > 0.1
+    truth = float(diff[turning] @ w[turning] / (w[turning] @ w[turning])) / p.track_width
+    assert truth == pytest.approx(factor, rel=0.15)
+    ratio = est.health().values['effective_track_ratio']
+    assert ratio == pytest.approx(truth, rel=0.05)

@@ -54,6 +54,7 @@ from slip_estimator.core.planet import (
 from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
 from slip_estimator.core.slip_model import SlipModel
 from slip_estimator.core.timing import WheelTimingMonitor
+from slip_estimator.core.track_width import TrackWidthEstimator
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
 from slip_estimator.core.types import (
     MAX_ANGULAR_RATE_RPS,
@@ -116,6 +117,7 @@ class SlipEstimator:
         self._events: deque = deque(maxlen=20)
         self.monitor = ResidualMonitor()
         self.timing = WheelTimingMonitor()
+        self.track = TrackWidthEstimator(p.track_width)
         self._S = (p.gyro_noise_density ** 2, p.accel_noise_density ** 2, p.accel_bias_psd,
                    p.gyro_bias_psd)
         self._reset_filter()
@@ -611,6 +613,9 @@ class SlipEstimator:
                 self.counters['wheel_late'] += 1
                 continue
             v_hist, yaw_rate_b, v_free, aid_accel = at
+            if wheel.rim_speed_left_mps is not None and wheel.rim_speed_right_mps is not None:
+                self.track.add(-yaw_rate_b,
+                               wheel.rim_speed_right_mps - wheel.rim_speed_left_mps)
             if self._recovering(wheel.stamp_ns):
                 # Re-anchor the velocity on the wheels (zero slip assumed, so slip is unknown).
                 if self.params.wheel_aid != 'off' and not self.is_turning:
@@ -682,7 +687,7 @@ class SlipEstimator:
         if wheel.rim_speed_left_mps is not None and wheel.rim_speed_right_mps is not None \
                 and moving:
             # FRD yaw rate > 0 turns right: the left track moves faster.
-            half = 0.5 * p.track_width * yaw_rate_b
+            half = 0.5 * self.track.width_m * yaw_rate_b
             sides = [slip_ratio(v_body + half, wheel.rim_speed_left_mps),
                      slip_ratio(v_body - half, wheel.rim_speed_right_mps)]
         self.counters['slip_estimates'] += 1
@@ -796,6 +801,8 @@ class SlipEstimator:
         notes = [f'suspected: {text}' for text in self.monitor.suspects()]
         lag, corr = self.timing.lag_s, self.timing.correlation
         values['wheel_lag_s'], values['wheel_lag_correlation'] = lag, corr
+        values['effective_track_width_m'] = self.track.width_m
+        values['effective_track_ratio'] = self.track.width_m / self.params.track_width
         if corr >= 0.8 and abs(lag - self.params.wheel_latency_s) > 0.05:
             # The turns say when the wheels moved: a lag the parameters do not declare shifts
             # every slip step against the body motion.

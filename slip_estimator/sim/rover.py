@@ -383,7 +383,7 @@ def simulate(config: ScenarioConfig) -> SimResult:
 
     # --- 5. wheels on the fine grid
     K = _slip_gain(s_cmd)
-    half_T = 0.5 * rover.track_width_m
+    half_T = 0.5 * rover.track_width_m * rover.effective_track_factor
     yaw_rate = omega_eb_b[:, 2]
     v_left = v - yaw_rate * half_T
     v_right = v + yaw_rate * half_T

@@ -132,6 +132,8 @@ class RoverConfig:
     ----------
     wheel_radius_m : rolling radius r, m.
     track_width_m : distance between left and right wheel centres, m.
+    effective_track_factor : a skid-steer turn needs a wheel differential of yaw rate x
+        track x this factor (the wheels scrub sideways; real skid-steer robots: 1.5-1.9).
     imu_to_base_rpy_rad : orientation of imu_link in base_link (roll, pitch, yaw), rad. The
         default (pi, 0, 0) is an x-forward / y-right / z-down sensor.
     imu_to_base_xyz_m : position of imu_link in base_link, m.
@@ -140,6 +142,7 @@ class RoverConfig:
 
     wheel_radius_m: float = 0.12
     track_width_m: float = 0.685
+    effective_track_factor: float = 1.0
     imu_to_base_rpy_rad: tuple[float, float, float] = (math.pi, 0.0, 0.0)
     imu_to_base_xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     encoder_pulses_per_m: float = 47000.0

@@ -1,0 +1,44 @@
+"""Effective track width of a skid-steer robot, from the gyro and the wheel differential.
+
+A skid-steer robot turns by scrubbing its wheels sideways: the rim-speed differential needed
+for a yaw rate is larger than the geometric track predicts, rim_R - rim_L = B_eff * omega
+(FLU yaw rate), with B_eff 1.5-1.9 times the wheel spacing on real robots (the multiplier
+users hand-tune in diff-drive controllers). B_eff is the least-squares ratio over turning
+samples, with a fading memory so that it follows the ground. Only the standard library is
+used.
+"""
+from __future__ import annotations
+
+_MIN_RATE_RPS = 0.1
+"""Below this yaw rate the differential is encoder noise, not a turn."""
+_MEMORY = 300
+"""Turning samples the estimate remembers (30 s of turning at 10 Hz)."""
+_MIN_SAMPLES = 20
+_RATIO_BOUNDS = (0.5, 3.0)
+"""An estimate outside these multiples of the declared track is a fault, not a robot."""
+
+
+class TrackWidthEstimator:
+    """rim_R - rim_L = B_eff * omega_FLU, fitted online."""
+
+    def __init__(self, declared_m: float) -> None:
+        self.declared_m = declared_m
+        self._sxy = self._sxx = 0.0
+        self.samples = 0
+
+    def add(self, yaw_rate_flu_rps: float, rim_right_minus_left_mps: float) -> None:
+        w = yaw_rate_flu_rps
+        if abs(w) < _MIN_RATE_RPS:
+            return
+        self.samples += 1
+        k = 1.0 / min(self.samples, _MEMORY)
+        self._sxy += k * (w * rim_right_minus_left_mps - self._sxy)
+        self._sxx += k * (w * w - self._sxx)
+
+    @property
+    def width_m(self) -> float:
+        """The effective track width, m (the declared one until enough turning is seen)."""
+        if self.samples < _MIN_SAMPLES or self._sxx <= 0.0:
+            return self.declared_m
+        lo, hi = _RATIO_BOUNDS
+        return min(max(self._sxy / self._sxx, lo * self.declared_m), hi * self.declared_m)
