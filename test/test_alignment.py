@@ -196,3 +196,20 @@ def test_skid_steer_effective_track_width_is_estimated(factor):
     assert truth == pytest.approx(factor, rel=0.15)
     ratio = est.health().values['effective_track_ratio']
     assert ratio == pytest.approx(truth, rel=0.05)
+
+
+def test_without_wheels_the_ins_runs_and_slip_is_stale_with_the_reason():
+    """No wheel data at all: the filter aligns at rest on the IMU alone, runs as an INS with
+    ZUPT/ZARU, publishes odometry, and reports slip 'unknown' once per wheel timeout, naming
+    the reason in the health message."""
+    r = simulate(short_scenario(0))
+    p = sim_params(r)
+    d = simulation_data(r, p)
+    d = dataclasses.replace(d, wheel_ns=d.wheel_ns[:0], rim_mps=d.rim_mps[:0])
+    est, out, odo = run_core(p, d)
+    assert est.aligned and len(odo) > 0 and np.isfinite(odo).all()
+    assert est.counters['zupt'] > 0
+    assert out and all(o.slip_class == -1 for o in out)
+    duration_s = (d.imu_ns[-1] - d.imu_ns[0]) * 1e-9
+    assert len(out) == pytest.approx(duration_s / p.wheel_timeout_s, rel=0.3)
+    assert 'no wheel data' in est.health().message

@@ -134,6 +134,7 @@ class SlipEstimator:
             max(2, int(round(p.stationary_window_s * 250.0))), p.stationary_accel_std,
             p.stationary_gyro_std, p.stationary_wheel_speed_mps, int(p.wheel_timeout_s * _NS))
         self._align_rows: list[np.ndarray] = []
+        self._aligned_ns: int | None = None
         self._motion = MotionStart()
         self.imu_problem: str | None = None
         self._acc_tau = 0.0
@@ -413,6 +414,7 @@ class SlipEstimator:
         self._odom_frame = LocalEnu(self.planet, self._llh0)
         self.P = self._initial_covariance(f)
         self._next_update_ns = stamp_ns
+        self._aligned_ns = stamp_ns
         self._align_rows = []
 
     def _initial_covariance(self, f_b: np.ndarray) -> np.ndarray:
@@ -714,13 +716,19 @@ class SlipEstimator:
         return out
 
     def _stale_check(self) -> list[SlipEstimate]:
-        """Wheel dropout: report "unknown" once per timeout instead of guessing."""
+        """Wheel dropout, or no wheel data at all: report "unknown" once per timeout instead of
+        guessing (with no wheels the filter runs as an INS with ZUPT/ZARU only)."""
         last = self._last_stale_ns if self._last_stale_ns is not None else self._last_wheel_ns
+        if last is None:
+            last = self._aligned_ns
         if last is None or self.stamp_ns - last <= self._wheel_timeout_ns:
             return []
         self._last_stale_ns = self.stamp_ns
-        self._event(f'wheel data missing for {(self.stamp_ns - self._last_wheel_ns) * 1e-9:.1f} s:'
-                    ' slip unknown')
+        if self._last_wheel_ns is None:
+            self._event('no wheel data: slip unknown, INS with ZUPT/ZARU only')
+        else:
+            self._event(f'wheel data missing for '
+                        f'{(self.stamp_ns - self._last_wheel_ns) * 1e-9:.1f} s: slip unknown')
         return [self._unknown(self.stamp_ns)]
 
     # ------------------------------------------------------------------ outputs
