@@ -99,7 +99,8 @@ def test_in_motion_attitude_error_is_within_a_degree():
 ])
 def test_non_rep145_imus_are_named_and_not_aligned_on(scale, rotate_deg, expected):
     """The same drive with the IMU's gravity removed, in g, or mounted 90 deg off its declared
-    rotation: named at start in the health message (ERROR), no estimate."""
+    rotation: named at start in the health message (ERROR); no INS estimate and no slip, the
+    pose from the wheels alone (degraded mode)."""
     r = simulate(short_scenario(0))
     p = sim_params(r)
     d = simulation_data(r, p)
@@ -112,9 +113,15 @@ def test_non_rep145_imus_are_named_and_not_aligned_on(scale, rotate_deg, expecte
     if expected is None:
         assert est.aligned and health.level < 2
     else:
-        assert not est.aligned and len(odo) == 0
+        assert not est.aligned
         assert health.level == 2 and expected in health.message
+        assert 'odometry from the wheels' in health.message
         assert all(o.slip_class <= 0 for o in out)
+        pose = est.odometry()
+        travelled = float(np.sum(np.diff(r.imu_t_s[r.imu_t_s < 20.0]) *
+                                 r.speed_mps[r.imu_t_s < 20.0][1:]))
+        assert np.linalg.norm(pose.p_ob_o) == pytest.approx(travelled, rel=0.2)
+        assert np.isfinite(pose.p_ob_o).all() and np.isfinite(pose.pose_covariance).all()
 
 
 @pytest.mark.parametrize('rate_imu_hz, rate_wheel_hz', [(50.0, 10.0), (100.0, 50.0)])
@@ -213,3 +220,31 @@ def test_without_wheels_the_ins_runs_and_slip_is_stale_with_the_reason():
     duration_s = (d.imu_ns[-1] - d.imu_ns[0]) * 1e-9
     assert len(out) == pytest.approx(duration_s / p.wheel_timeout_s, rel=0.3)
     assert 'no wheel data' in est.health().message
+
+
+def test_node_publishes_wheel_odometry_for_a_gravity_free_imu():
+    """Through the node logic: an IMU with gravity removed gets an ERROR diagnostic naming it,
+    and odometry (from the wheels) is still published, finite."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    from test_replay import synthetic_messages, synthetic_params
+
+    from slip_estimator.ros.adapter import SlipEstimatorAdapter
+
+    adapter = SlipEstimatorAdapter(synthetic_params())
+    published = []
+    for topic, msg, _ in synthetic_messages(stationary_s=3.0, drive_s=10.0):
+        if topic == '/imu/data':
+            msg.linear_acceleration.z -= 9.80665  # a driver that removes gravity
+            published += adapter.on_imu(msg)
+        else:
+            published += adapter.on_joint_states(msg)
+    odometry = [m for t, m in published if t.endswith('/odometry')]
+    assert len(odometry) > 100
+    end = odometry[-1].pose.pose.position
+    assert math.hypot(end.x, end.y) > 1.0  # (heading north: along ENU y)
+    diags = [m for t, m in published if t == '/diagnostics']
+    assert any(s.level in (2, b'\x02') and 'gravity removed' in s.message
+               for d in diags for s in d.status)

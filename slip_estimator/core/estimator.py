@@ -55,6 +55,7 @@ from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
 from slip_estimator.core.slip_model import SlipModel
 from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.track_width import TrackWidthEstimator
+from slip_estimator.core.wheel_odometry import WheelDeadReckoning
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
 from slip_estimator.core.types import (
     MAX_ANGULAR_RATE_RPS,
@@ -136,6 +137,8 @@ class SlipEstimator:
         self._align_rows: list[np.ndarray] = []
         self._aligned_ns: int | None = None
         self._motion = MotionStart()
+        # ENU yaw of base_link x from the heading (clockwise from north).
+        self._wheel_odo = WheelDeadReckoning(math.radians(90.0 - p.initial_heading_deg))
         self.imu_problem: str | None = None
         self._acc_tau = 0.0
         # Per-sample accumulators as lists of floats (numpy costs ~1 us per 3-vector operation;
@@ -257,6 +260,7 @@ class SlipEstimator:
         self._pending.append(sample)
         if self.state is None:
             self._motion.add_wheel(sample.stamp_ns, sample.rim_speed_mps)
+            self._wheel_odo.add(sample, self.track.width_m)
         if len(self._pending) > _MAX_PENDING_WHEEL:
             # Wheel stamps far ahead of the IMU (clock offset or IMU dropout): keep the newest.
             self._pending.popleft()
@@ -743,7 +747,9 @@ class SlipEstimator:
         Output only (nothing here feeds back into the filter), on floats where numpy would
         cost more than the arithmetic; a test checks it against the matrix formulas."""
         if self.state is None:
-            return None
+            # An IMU refused as non-REP-145: the wheels alone give a pose (degraded mode).
+            return (self._wheel_odo.estimate(self.stamp_ns)
+                    if self.imu_problem is not None and self.stamp_ns is not None else None)
         st = self.state
         L, lam, h = st.llh.tolist()
         c11, c12, c13, c21, c22, c23, c31, c32, c33 = C = st.C_b_n.ravel().tolist()
@@ -788,7 +794,8 @@ class SlipEstimator:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""
         values: dict = dict(self.counters)
         if self.state is None and self.imu_problem is not None:
-            return Health(2, f'IMU not usable, not aligning: {self.imu_problem}', values)
+            return Health(2, f'IMU not usable, not aligning (odometry from the wheels only, slip '
+                          f'unknown): {self.imu_problem}', values)
         if self.state is None:
             recent = '; '.join(dict.fromkeys(text for _, text in self._events))
             return Health(1, 'aligning: waiting for a stationary window or '
