@@ -35,12 +35,12 @@ def read_yaml(path: str | Path) -> Any:
 
 
 def node_sections(doc: Any, node_name: str = NODE_NAME) -> list[str]:
-    """The sections of a parameter document that apply to ``node_name`` (``/**``, the name,
-    ``/name`` or a wildcard pattern matching ``/name``), in the order rcl merges them."""
+    """The sections of a parameter document that apply to the node ``node_name`` (a name or a
+    fully qualified name): ``/**``, the name with or without its leading slash, or a wildcard
+    pattern matching it, in file order (rcl merges them in that order)."""
     fqn = '/' + node_name.lstrip('/')
     keys = [k for k in doc if isinstance(k, str)] if isinstance(doc, dict) else []
-    return [k for k in keys if k in ('/**', node_name, fqn)
-            or ('*' in k and fnmatch.fnmatchcase(fqn, '/' + k.lstrip('/')))]
+    return [k for k in keys if fnmatch.fnmatchcase(fqn, '/' + k.lstrip('/'))]
 
 
 def read_param_values(path: str | Path, node_name: str = NODE_NAME) -> dict[str, Any]:
