@@ -80,10 +80,15 @@ def load_params(path: str | Path, node_name: str = NODE_NAME) -> Params:
         raise ParameterError(f'{path}: {exc}') from None
 
 
-def save_params(params: Params, path: str | Path, node_name: str = NODE_NAME) -> None:
-    """Write params as a ROS 2 params file loadable with ``--ros-args --params-file``."""
-    Path(path).write_text(yaml.safe_dump({node_name: {'ros__parameters': params.to_dict()}},
-                                         sort_keys=False))
+def save_params(params: Params, path: str | Path, node_name: str = NODE_NAME, *,
+                comments: list[str] | tuple[str, ...] = ()) -> None:
+    """Write params as a ROS 2 params file loadable with ``--ros-args --params-file``;
+    ``comments`` (one paragraph each) go at the top as ``#`` lines."""
+    import textwrap
+
+    head = ''.join(''.join(f'# {line}\n' for line in textwrap.wrap(c, 96)) for c in comments)
+    Path(path).write_text(head + yaml.safe_dump(
+        {node_name: {'ros__parameters': params.to_dict()}}, sort_keys=False))
 
 
 def _yaml_value(value: Any) -> str:
