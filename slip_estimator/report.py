@@ -361,7 +361,14 @@ def evaluate_main(argv: list[str] | None = None) -> int:
         Path(args.json).write_text(text)
     (report_dir / 'summary.txt').write_text(summary_text(ev) + '\n')
     if not args.no_plots:
-        files = write_figures(run, ev, report_dir)
+        try:
+            files = write_figures(run, ev, report_dir)
+        except ModuleNotFoundError as exc:
+            if exc.name != 'matplotlib':
+                raise
+            print('figures skipped: matplotlib is not installed (pip install '
+                  '"slip_estimator[plots]")', file=sys.stderr)
+            return 0
         print(f'report: {report_dir} ({", ".join(f.name for f in files)})')
     return 0
 
