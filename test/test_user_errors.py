@@ -15,6 +15,7 @@ from slip_estimator.report import evaluate_main, import_main, summary_text
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_replay import synthetic_messages, write_synthetic_bag  # noqa: E402
+from test_replay_inputs import one_line_exit_2  # noqa: E402
 
 S_NS = 1_000_000_000
 
@@ -47,38 +48,29 @@ def test_small_classes_named():
     assert not any('low' in n for n in ev.notes if 'rests on' in n)
 
 
-def _one_line_2(main, argv, capsys, *words):
-    assert main(argv) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and 'Traceback' not in err, err
-    for w in words:
-        assert w in err, err
-
-
 def test_evaluate_bad_inputs_one_line(tmp_path, capsys):
     bag = str(write_synthetic_bag(tmp_path / 'in', synthetic_messages(1.0, 1.0)))
-    rd = str(tmp_path / 'rep')
-    _one_line_2(evaluate_main, ['--input', str(tmp_path / 'x'), '--estimate', bag,
-                                '--report-dir', rd, '--quiet'], capsys, 'no such file')
+    tail = ['--report-dir', str(tmp_path / 'rep'), '--quiet']
     (tmp_path / 'empty').mkdir()
-    _one_line_2(evaluate_main, ['--input', bag, '--estimate', str(tmp_path / 'empty'),
-                                '--report-dir', rd, '--quiet'], capsys, 'empty folder')
-    _one_line_2(evaluate_main, ['--input', bag, '--estimate', bag, '--report-dir', rd,
-                                '--quiet'], capsys, 'no slip estimates')
     bad = tmp_path / 'p.yaml'
     bad.write_text('slip_estimator: [\n')
-    _one_line_2(evaluate_main, ['--input', bag, '--estimate', bag, '--params', str(bad),
-                                '--report-dir', rd, '--quiet'], capsys, 'YAML syntax error')
+    for argv, words in (
+            (['--input', str(tmp_path / 'x'), '--estimate', bag], ('no such file',)),
+            (['--input', bag, '--estimate', str(tmp_path / 'empty')], ('empty folder',)),
+            (['--input', bag, '--estimate', bag], ('no slip estimates',)),
+            (['--input', bag, '--estimate', bag, '--params', str(bad)],
+             ('p.yaml', 'YAML syntax error'))):
+        one_line_exit_2(evaluate_main, capsys, argv + tail, *words)
 
 
 def test_import_pathfinder_bad_inputs_one_line(tmp_path, capsys):
     out = str(tmp_path / 'out')
-    _one_line_2(import_main, [str(tmp_path / 'none.mat'), '--output', out], capsys,
-                'none.mat', 'no such file')
+    one_line_exit_2(import_main, capsys, [str(tmp_path / 'none.mat'), '--output', out],
+                    'none.mat', 'no such file')
     txt = tmp_path / 'log.txt'
     txt.write_text('not a mat file\n')
-    _one_line_2(import_main, [str(txt), '--output', out], capsys, 'log.txt',
-                'not a Pathfinder .mat log')
+    one_line_exit_2(import_main, capsys, [str(txt), '--output', out], 'log.txt',
+                    'not a Pathfinder .mat log')
 
 
 def test_progress_plain_lines_when_not_a_tty(monkeypatch):
