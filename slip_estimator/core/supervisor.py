@@ -1,0 +1,196 @@
+"""The estimator's supervisor: health checks, recovery, resets, wheel timeout, health report.
+
+It decides and reports; it never changes the filter itself. Each check returns a decision
+(:class:`FilterVerdict`, :class:`GapAction`, an event text) that the facade carries out, and
+the supervisor keeps only its own bookkeeping: the recovery window, the wheel stream's
+arrivals, and the recent events that the health message names.
+"""
+from __future__ import annotations
+
+import enum
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from slip_estimator.core import kalman
+from slip_estimator.core.params import Params
+from slip_estimator.core.state import VEL, NavState
+from slip_estimator.core.types import Health
+
+_NS = 1_000_000_000
+_EVENTS_HELD = 20
+_EVENT_AGE_NS = 10 * _NS  # events younger than this are named in the health message
+
+
+class GapAction(enum.Enum):
+    """What an IMU step of a given length calls for."""
+
+    NONE = 0
+    INTERRUPT = 1
+    """a gap: the slip model's step test must not span it, the INS integrates across"""
+    RECOVER = 2
+    """a long gap: not integrated across; velocity re-initialised"""
+
+
+@dataclass(frozen=True)
+class FilterVerdict:
+    """The filter-health decision after an update epoch."""
+
+    reset: bool = False
+    """non-finite state or covariance: full reset, re-align"""
+    repaired_P: np.ndarray | None = None
+    """P with its eigenvalues floored (it lost positive definiteness)"""
+    recover_reason: str | None = None
+    """divergence: re-initialise the velocity (with the biases clipped, when given)"""
+    b_a: np.ndarray | None = None
+    b_g: np.ndarray | None = None
+
+
+def check_filter(p: Params, st: NavState, P: np.ndarray) -> FilterVerdict:
+    """Covariance must stay finite, symmetric and positive definite; the state must stay
+    within physical bounds. Repair what can be repaired, otherwise re-initialise."""
+    # A finite sum has finite terms; only a non-finite sum (NaN/Inf, or an overflow of
+    # finite terms) needs the element-wise check.
+    if not (math.isfinite(float(P.sum()) + sum(st.v_eb_n.tolist())
+                          + sum(st.C_b_n.ravel().tolist()) + sum(st.llh.tolist()))
+            or (np.isfinite(P).all() and np.isfinite(st.v_eb_n).all()
+                and np.isfinite(st.C_b_n).all() and np.isfinite(st.llh).all())):
+        return FilterVerdict(reset=True)
+    repaired = None
+    if P.diagonal().min() <= 0.0:
+        w, V = np.linalg.eigh(kalman.symmetrize(P))
+        repaired = kalman.symmetrize((V * np.maximum(w, 1e-18)) @ V.T)
+    speed = math.sqrt(st.v_eb_n.dot(st.v_eb_n))  # np.linalg.norm of a vector
+    bias_out = (np.abs(st.b_a).max() > 10.0 * p.initial_accel_bias_std
+                or np.abs(st.b_g).max() > 10.0 * p.initial_gyro_bias_std)
+    if speed > 2.0 * p.max_wheel_speed_mps or bias_out:
+        reason = 'divergence (speed %.1f m/s%s)' % (
+            speed, ', biases out of bounds' if bias_out else '')
+        if bias_out:
+            return FilterVerdict(False, repaired, reason,
+                                 np.clip(st.b_a, -p.initial_accel_bias_std,
+                                         p.initial_accel_bias_std),
+                                 np.clip(st.b_g, -p.initial_gyro_bias_std,
+                                         p.initial_gyro_bias_std))
+        return FilterVerdict(False, repaired, reason)
+    return FilterVerdict(False, repaired)
+
+
+class Supervisor:
+    """Recovery window, IMU gaps and saturation, wheel timeout, events and the health report.
+
+    :meth:`reset` (with the filter) forgets the recovery window and the wheel stream; the
+    events survive it (they are the record of what happened).
+    """
+
+    def __init__(self, params: Params) -> None:
+        self.params = params
+        self._recovery_ns = int(params.recovery_s * _NS)
+        self._wheel_timeout_ns = int(params.wheel_timeout_s * _NS)
+        self.events: deque = deque(maxlen=_EVENTS_HELD)
+        self.reset()
+
+    def reset(self) -> None:
+        self.recovering_until_ns: int | None = None
+        self._last_wheel_ns: int | None = None
+        self._last_stale_ns: int | None = None
+
+    def event(self, stamp_ns: int | None, text: str) -> None:
+        self.events.append((stamp_ns, text))
+
+    # ------------------------------------------------------------------ IMU
+    def imu_gap(self, dt_s: float, aligned: bool) -> GapAction:
+        """The action an IMU step of ``dt_s`` calls for (records the event)."""
+        p = self.params
+        if dt_s <= p.max_imu_gap_s:
+            return GapAction.NONE
+        if aligned and dt_s > p.recovery_gap_s:
+            # Not integrated across: one sample says nothing about minutes of motion.
+            return GapAction.RECOVER
+        return GapAction.INTERRUPT
+
+    def saturated(self, f_b: list[float], w_b: list[float]) -> bool:
+        """An IMU sample at its measurement range (clipping), when the ranges are known."""
+        p = self.params
+        return ((p.accel_range_mps2 > 0.0 and max(map(abs, f_b)) >= 0.999 * p.accel_range_mps2)
+                or (p.gyro_range_rps > 0.0
+                    and max(map(abs, w_b)) >= 0.999 * p.gyro_range_rps))
+
+    # ------------------------------------------------------------------ recovery
+    def start_recovery(self, stamp_ns: int) -> None:
+        """Slip is unknown for ``recovery_s`` from ``stamp_ns``."""
+        self.recovering_until_ns = stamp_ns + self._recovery_ns
+
+    def recovering(self, stamp_ns: int) -> bool:
+        """True while a wheel sample at ``stamp_ns`` falls in the recovery window."""
+        if self.recovering_until_ns is None:
+            return False
+        if stamp_ns >= self.recovering_until_ns:
+            self.recovering_until_ns = None
+            return False
+        return True
+
+    # ------------------------------------------------------------------ wheels
+    @property
+    def last_wheel_ns(self) -> int | None:
+        return self._last_wheel_ns
+
+    def wheel_arrived(self, stamp_ns: int) -> None:
+        self._last_wheel_ns = stamp_ns
+        self._last_stale_ns = None
+
+    def wheels_stale(self, stamp_ns: int, aligned_ns: int | None) -> str | None:
+        """Wheel dropout, or no wheel data at all: the event text once per timeout (slip is
+        then reported unknown instead of guessed), else None."""
+        last = self._last_stale_ns if self._last_stale_ns is not None else self._last_wheel_ns
+        if last is None:
+            last = aligned_ns
+        if last is None or stamp_ns - last <= self._wheel_timeout_ns:
+            return None
+        self._last_stale_ns = stamp_ns
+        if self._last_wheel_ns is None:
+            return 'no wheel data: slip unknown, INS with ZUPT/ZARU only'
+        return (f'wheel data missing for {(stamp_ns - self._last_wheel_ns) * 1e-9:.1f} s: '
+                'slip unknown')
+
+    # ------------------------------------------------------------------ report
+    def health(self, values: dict, figures: dict, notes: list[str], stamp_ns: int | None,
+               state: NavState | None, P: np.ndarray, imu_problem: str | None) -> Health:
+        """The health report: ``values`` (the counters, and the detectors' state once
+        aligned), then the filter's spread and biases, then ``figures`` (the parts'); ``notes``
+        (the parts' suspicions), the events of the last 10 s, the recovery, the bias bounds."""
+        p = self.params
+        if state is None and imu_problem is not None:
+            return Health(2, f'IMU not usable, not aligning (odometry from the wheels only, slip '
+                          f'unknown): {imu_problem}', values)
+        if state is None:
+            recent = '; '.join(dict.fromkeys(text for _, text in self.events))
+            return Health(1, 'aligning: waiting for a stationary window or '
+                          f'{p.motion_alignment_after_s:.1f} s of IMU and wheel data'
+                          + (f' (after: {recent})' if recent else ''), values)
+        sig = np.sqrt(np.maximum(np.diag(P), 0.0))
+        values.update({
+            'velocity_std_mps': float(np.linalg.norm(sig[VEL])),
+            'heading_std_rad': float(sig[2]),
+            'accel_bias_mps2': [float(x) for x in state.b_a],
+            'gyro_bias_rps': [float(x) for x in state.b_g],
+        })
+        values.update(figures)
+        level = 1 if notes else 0
+        if np.any(np.abs(state.b_g) > 5.0 * p.initial_gyro_bias_std):
+            level = 1
+            notes.append('gyro bias estimate beyond 5 sigma of its prior')
+        if np.any(np.abs(state.b_a) > 5.0 * p.initial_accel_bias_std):
+            level = 1
+            notes.append('accelerometer bias estimate beyond 5 sigma of its prior')
+        recent = [text for t, text in self.events
+                  if t is not None and stamp_ns - t <= _EVENT_AGE_NS]
+        if recent:
+            level = max(level, 1)
+            notes = list(dict.fromkeys(recent)) + notes
+        if self.recovering_until_ns is not None:
+            level = max(level, 1)
+        head = 'recovering' if self.recovering_until_ns is not None else 'running'
+        return Health(level, head + (': ' + '; '.join(notes) if notes else ''), values)
