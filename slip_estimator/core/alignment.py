@@ -243,3 +243,18 @@ def recovery_covariance(p: Params, planet: Planet, state: NavState, gap_s: float
     d[VEL] = 1.0
     d[POS] = (np.diag(T) * (0.01 + p.max_wheel_speed_mps * gap_s)) ** 2
     return np.diag(d)
+
+
+def filter_start(start: AlignmentStart, p: Params, planet: Planet,
+                 l_bw_b: np.ndarray) -> tuple[NavState, np.ndarray]:
+    """The filter's state and covariance after the alignment ``start``: levelled, at the
+    configured position and heading; in motion, moving at the rim speed along body x with a
+    widened covariance (:func:`in_motion_covariance`)."""
+    llh = np.array([math.radians(p.initial_latitude_deg), math.radians(p.initial_longitude_deg),
+                    p.initial_height_m])
+    st = aligned_state(start, planet, l_bw_b, math.radians(p.initial_heading_deg), llh)
+    P = initial_covariance(p, planet, st, start.f_b)
+    if start.speed_mps is not None:
+        st.v_eb_n = st.C_b_n[:, 0] * start.speed_mps
+        in_motion_covariance(P, start.speed_mps, p.initial_attitude_std)
+    return st, P

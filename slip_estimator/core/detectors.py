@@ -206,3 +206,26 @@ class TurnDetector:
         """Yaw rate = body rate projected on the local vertical."""
         yaw_rate = float(C_b_n[2] @ omega_nb_b)
         return math.fabs(yaw_rate) > self.yaw_rate_threshold_rps
+
+
+class ImuRate:
+    """The IMU's nominal sample interval: the median of its first ``learn_samples`` intervals,
+    then a slow running mean. Every window defined in seconds (stationarity, alignment) then
+    holds that many of its samples, whatever the rate (20-1000 Hz)."""
+
+    def __init__(self, learn_samples: int = 10, initial_dt_s: float = 1.0 / 250.0) -> None:
+        self.dt_s = initial_dt_s
+        self._learn_samples = learn_samples
+        self._first_dts: list[float] | None = []  # until the rate is known
+
+    def add(self, dt_s: float) -> bool:
+        """One regular interval (not a gap); True when the rate has just become known."""
+        if self._first_dts is None:
+            self.dt_s = 0.99 * self.dt_s + 0.01 * dt_s
+            return False
+        self._first_dts.append(dt_s)
+        if len(self._first_dts) < self._learn_samples:
+            return False
+        self.dt_s = float(np.median(self._first_dts))
+        self._first_dts = None
+        return True

@@ -16,14 +16,9 @@ back into it:
 * :mod:`slip_estimator.core.outputs`: the slip of a wheel sample and the odometry.
 
 A wheel sample describes the body ``wheel_latency_s`` before its stamp, which the INS may not
-have reached yet: :meth:`SlipEstimator.add_wheel` queues it, and whichever call brings the
-INS past its stamp (usually the next :meth:`SlipEstimator.add_imu`) evaluates it
-(:meth:`SlipEstimator._evaluate_reached_wheels`): slip from the history, then the wheel aid.
-
-Beyond the paper: with the paper's pseudo-measurements alone the forward velocity is
-unobservable while driving (0.1 m/s per second of drift on the real Pathfinder logs); the slip
-model's wheel aid stops it without assuming zero slip. ``wheel_aid = 'off'`` is the paper's
-method.
+have reached yet: :meth:`SlipEstimator.add_wheel` queues it, and the call that brings the INS
+past its stamp evaluates it (:meth:`SlipEstimator._evaluate_reached_wheels`). ``wheel_aid =
+'off'`` is the paper's method (see the README for why the wheel aid exists).
 """
 from __future__ import annotations
 
@@ -33,10 +28,9 @@ from collections import deque
 import numpy as np
 
 from slip_estimator.core import frames, outputs
-from slip_estimator.core.alignment import (AlignmentCollector, AlignmentStart, aligned_state,
-                                           in_motion_covariance, initial_covariance,
+from slip_estimator.core.alignment import (AlignmentCollector, AlignmentStart, filter_start,
                                            recovery_covariance)
-from slip_estimator.core.detectors import StationaryDetector, TurnDetector
+from slip_estimator.core.detectors import ImuRate, StationaryDetector, TurnDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
 from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint
@@ -50,12 +44,11 @@ from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
 from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.track_width import TrackWidthEstimator
-from slip_estimator.core.types import (MAX_ANGULAR_RATE_RPS, MAX_SPECIFIC_FORCE_MPS2, Health,
-                                       ImuSample, OdometryEstimate, SlipEstimate, WheelSample)
+from slip_estimator.core.types import (Health, ImuSample, OdometryEstimate, SlipEstimate,
+                                       WheelSample, imu_values_usable, wheel_speeds)
 from slip_estimator.core.wheel_odometry import WheelDeadReckoning
 
 _NS = 1_000_000_000
-_RATE_SAMPLES = 10  # IMU intervals whose median sets the nominal rate
 _MAX_WAITING_WHEELS = 50
 
 
@@ -96,8 +89,7 @@ class SlipEstimator:
         p = self.params
         self.filter = ErrorStateFilter(p, self.planet)
         self.stamp_ns: int | None = None
-        self._nominal_dt = 1.0 / 250.0
-        self._first_dts: list[float] | None = []  # until the IMU rate is known
+        self._rate = ImuRate()
         self.stationary = StationaryDetector(
             max(2, int(round(p.stationary_window_s * 250.0))), p.stationary_accel_std,
             p.stationary_gyro_std, p.stationary_wheel_speed_mps, int(p.wheel_timeout_s * _NS))
@@ -151,7 +143,7 @@ class SlipEstimator:
     @property
     def nominal_dt_s(self) -> float:
         """The IMU's nominal sample interval, s."""
-        return self._nominal_dt
+        return self._rate.dt_s
 
     @property
     def odom_origin_llh(self) -> np.ndarray | None:
@@ -163,7 +155,8 @@ class SlipEstimator:
         """Process one IMU sample; return slip estimates that became due."""
         # 1. check the sample
         f_l, w_l = sample.f_ib_b.tolist(), sample.omega_ib_b.tolist()
-        if not self._imu_acceptable(sample.stamp_ns, f_l, w_l):
+        if not (imu_values_usable(f_l, w_l)
+                and (self.stamp_ns is None or sample.stamp_ns > self.stamp_ns)):
             self.counters['imu_rejected'] += 1
             return []
         self.counters['imu_samples'] += 1
@@ -183,7 +176,7 @@ class SlipEstimator:
         if not self.aligned:
             start = self.alignment.add_imu(sample.f_ib_b, sample.omega_ib_b, sample.stamp_ns,
                                            self.stationary.is_stationary(sample.stamp_ns),
-                                           self._nominal_dt)
+                                           self._rate.dt_s)
             if start is not None:
                 self._align(start, sample.stamp_ns)
             return self._slip_before_alignment()
@@ -204,8 +197,7 @@ class SlipEstimator:
     def add_wheel(self, sample: WheelSample) -> list[SlipEstimate]:
         """Process one wheel sample; return slip estimates that became due."""
         # 1. check the sample
-        speeds = [v for v in (sample.rim_speed_mps, sample.rim_speed_left_mps,
-                              sample.rim_speed_right_mps) if v is not None]
+        speeds = wheel_speeds(sample)
         last_ns = self.supervisor.last_wheel_ns
         if (not all(math.isfinite(v) and abs(v) <= self.params.max_wheel_speed_mps
                     for v in speeds)
@@ -232,15 +224,6 @@ class SlipEstimator:
         # 4. evaluate what the INS has reached
         return self._evaluate_reached_wheels()
 
-    def _imu_acceptable(self, stamp_ns: int, f_l: list[float], w_l: list[float]) -> bool:
-        if not math.isfinite(sum(f_l) + sum(w_l)):  # NaN/Inf anywhere
-            return False
-        if (f_l[0] * f_l[0] + f_l[1] * f_l[1] + f_l[2] * f_l[2] > MAX_SPECIFIC_FORCE_MPS2 ** 2
-                or w_l[0] * w_l[0] + w_l[1] * w_l[1] + w_l[2] * w_l[2]
-                > MAX_ANGULAR_RATE_RPS ** 2):  # finite but absurd: one step would wreck the INS
-            return False
-        return self.stamp_ns is None or stamp_ns > self.stamp_ns
-
     def _imu_step(self, dt: float, f_l: list[float], w_l: list[float]) -> GapAction:
         """Clipping and gaps as the supervisor judges them; the IMU rate learnt otherwise."""
         if self.supervisor.saturated(f_l, w_l):
@@ -251,49 +234,28 @@ class SlipEstimator:
             self.counters['imu_gaps'] += 1
             self.supervisor.event(self.stamp_ns, f'IMU gap of {dt:.2f} s')
             self.slip_model.interrupt()  # no step test across a hole in the INS
-        elif self._first_dts is not None:
-            self._learn_rate(dt)
-        else:
-            self._nominal_dt = 0.99 * self._nominal_dt + 0.01 * dt
+        elif self._rate.add(dt):
+            n = max(2, int(round(self.params.stationary_window_s / self._rate.dt_s)))
+            if n != self.stationary.window_samples:
+                self.stationary.resize(n)
         return action
-
-    def _learn_rate(self, dt: float) -> None:
-        """The IMU's own rate, from the median of its first intervals: every window that is
-        defined in seconds (stationarity, alignment) then holds that many of its samples,
-        whatever the rate (20-1000 Hz)."""
-        self._first_dts.append(dt)
-        if len(self._first_dts) < _RATE_SAMPLES:
-            return
-        self._nominal_dt = float(np.median(self._first_dts))
-        self._first_dts = None
-        n = max(2, int(round(self.params.stationary_window_s / self._nominal_dt)))
-        if n != self.stationary.window_samples:
-            self.stationary.resize(n)
 
     # ------------------------------------------------------------------ alignment, recovery
     def _align(self, start: AlignmentStart, stamp_ns: int) -> None:
-        """Start the filter (at rest, or in motion: velocity from the rim speed with a wide
-        covariance, slip unknown for ``recovery_s`` while the wheels re-anchor it)."""
+        """Start the filter; in motion, slip is unknown for ``recovery_s`` while the wheels
+        re-anchor the velocity (zero slip assumed)."""
         p = self.params
-        llh = np.array([math.radians(p.initial_latitude_deg),
-                        math.radians(p.initial_longitude_deg), p.initial_height_m])
-        st = aligned_state(start, self.planet, self.l_bw_b, math.radians(p.initial_heading_deg),
-                           llh)
-        self.filter.start(st, initial_covariance(p, self.planet, st, start.f_b),
-                          float(np.linalg.norm(start.f_b)))
+        st, P = filter_start(start, p, self.planet, self.l_bw_b)
+        self.filter.start(st, P, float(np.linalg.norm(start.f_b)))
         # base_link position at alignment: the origin of odom.
         self._odom_frame = LocalEnu(self.planet, outputs.base_llh(st, self.l_bw_b, self.planet))
-        self._next_update_ns = stamp_ns
-        self._aligned_ns = stamp_ns
-        if start.speed_mps is None:
-            return
-        st.v_eb_n = st.C_b_n[:, 0] * start.speed_mps
-        in_motion_covariance(self.filter.P, start.speed_mps, p.initial_attitude_std)
-        self.slip_model.reset(from_rest=False)
-        self.supervisor.start_recovery(stamp_ns)
-        self.supervisor.event(self.stamp_ns, (
-            f'aligned in motion (no stationary window in {p.motion_alignment_after_s:.1f} s): '
-            f'slip unknown for {p.recovery_s:.0f} s'))
+        self._next_update_ns = self._aligned_ns = stamp_ns
+        if start.speed_mps is not None:
+            self.slip_model.reset(from_rest=False)
+            self.supervisor.start_recovery(stamp_ns)
+            self.supervisor.event(self.stamp_ns, (
+                f'aligned in motion (no stationary window in {p.motion_alignment_after_s:.1f} '
+                f's): slip unknown for {p.recovery_s:.0f} s'))
 
     def _recover(self, stamp_ns: int, gap_s: float, reason: str) -> None:
         """Re-initialise velocity and inflate the covariance after an IMU gap or a divergence.
@@ -338,7 +300,7 @@ class SlipEstimator:
 
     # ------------------------------------------------------------------ filter steps
     def _predict_covariance(self) -> None:
-        self.filter.predict_covariance(self.stationary.window, self._nominal_dt)
+        self.filter.predict_covariance(self.stationary.window, self._rate.dt_s)
 
     def covariance(self) -> np.ndarray:
         """Error-state covariance at the time of the last IMU sample (flushes the decimated
@@ -371,7 +333,7 @@ class SlipEstimator:
         flt.last_records = []
         self._next_update_ns = stamp_ns + int(_NS / self.params.update_rate_hz)
         w_mean, n = flt.take_mean_rate()
-        period = max(1, n) * self._nominal_dt
+        period = max(1, n) * self._rate.dt_s
         self.is_stationary = self.stationary.is_stationary(stamp_ns)
         st = flt.state
         self.is_turning = self.turn.is_turning(w_mean - st.b_g, st.C_b_n)
@@ -481,7 +443,7 @@ class SlipEstimator:
                     if self.imu_problem is not None and self.stamp_ns is not None else None)
         return outputs.odometry(self.stamp_ns, self.filter.state, self.filter.P,
                                 self._omega_ib_b, self._l_bw_b, self.planet, self._odom_frame,
-                                self.params.gyro_noise_density ** 2 / self._nominal_dt)
+                                self.params.gyro_noise_density ** 2 / self._rate.dt_s)
 
     def health(self) -> Health:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""
@@ -494,16 +456,12 @@ class SlipEstimator:
         figures = {f'nis_mean_{k}': v for k, v in self.filter.nis_mean.items()}
         figures.update(self.monitor.values())
         notes = [f'suspected: {text}' for text in self.monitor.suspects()]
-        lag, corr = self.timing.lag_s, self.timing.correlation
-        figures['wheel_lag_s'], figures['wheel_lag_correlation'] = lag, corr
+        figures['wheel_lag_s'] = self.timing.lag_s
+        figures['wheel_lag_correlation'] = self.timing.correlation
         figures['effective_track_width_m'] = self.track.width_m
         figures['effective_track_ratio'] = self.track.width_m / self.params.track_width
-        if corr >= 0.8 and abs(lag - self.params.wheel_latency_s) > 0.05:
-            # The turns say when the wheels moved: a lag the parameters do not declare shifts
-            # every slip step against the body motion.
-            notes.append(f'suspected: wheel stamps {lag * 1e3:+.0f} ms behind the IMU (yaw rate '
-                         f'vs wheel differential in turns, r = {corr:.2f}) against a declared '
-                         f'wheel_latency_s of {self.params.wheel_latency_s:.3f} s: clock offset '
-                         'or undeclared latency')
+        timing = self.timing.suspicion(self.params.wheel_latency_s)
+        if timing is not None:
+            notes.append(f'suspected: {timing}')
         return sup.health(values, figures, notes, self.stamp_ns, self.filter.state,
                           self.filter.P, self.imu_problem)
