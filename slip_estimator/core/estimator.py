@@ -1,24 +1,20 @@
 """The estimator facade: IMU and wheel samples in, odometry, slip and health out.
 
 It owns its parts and moves data between them by calls and return values; no part calls
-back into it:
-
-* :class:`~slip_estimator.core.filter.ErrorStateFilter`: strapdown INS, decimated covariance
-  prediction, gated updates, NIS records;
-* the measurement models (:mod:`slip_estimator.core.measurements`): ZUPT, ZARU, NHC and the
-  wheel aid's forward speed, each with its own R;
-* :class:`~slip_estimator.core.alignment.AlignmentCollector` (at rest or in motion);
-* the detectors (stationarity, turn), the residual, timing and track-width monitors;
-* :class:`~slip_estimator.core.supervisor.Supervisor`: filter health, recovery, wheel timeout;
-* :class:`~slip_estimator.core.history.ForwardSpeedHistory`: the recent forward speed;
-* :class:`~slip_estimator.core.slip_model.SlipModel` (``wheel_aid = 'hold'``): what the rim
-  speed may tell the filter (the held slip, re-anchoring after a change, or nothing);
-* :mod:`slip_estimator.core.outputs`: the slip of a wheel sample and the odometry.
+back into it: the :class:`~slip_estimator.core.filter.ErrorStateFilter` (strapdown INS,
+covariance prediction, gated updates), the measurement models with their own R
+(:mod:`~slip_estimator.core.measurements`), the
+:class:`~slip_estimator.core.alignment.AlignmentCollector`, the detectors and monitors, the
+:class:`~slip_estimator.core.supervisor.Supervisor` (filter health, recovery, wheel timeout,
+counters), the :class:`~slip_estimator.core.history.ForwardSpeedHistory`, the
+:class:`~slip_estimator.core.wheel_aid.WheelAid` (the slip model's decisions) and the pure
+:mod:`~slip_estimator.core.outputs`.
 
 A wheel sample describes the body ``wheel_latency_s`` before its stamp, which the INS may not
 have reached yet: :meth:`SlipEstimator.add_wheel` queues it, and the call that brings the INS
-past its stamp evaluates it (:meth:`SlipEstimator._evaluate_reached_wheels`). ``wheel_aid =
-'off'`` is the paper's method (see the README for why the wheel aid exists).
+past its stamp evaluates it (:meth:`SlipEstimator._evaluate_reached_wheels`: the slip, then
+the wheel aid). ``wheel_aid = 'off'`` is the paper's method (the README says why the wheel aid
+exists).
 """
 from __future__ import annotations
 
@@ -35,17 +31,18 @@ from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
 from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint
 from slip_estimator.core.kalman import UpdateRecord
-from slip_estimator.core.measurements import (ForwardSpeed, NonHolonomic, ZeroAngularRate,
-                                              ZeroVelocity)
+from slip_estimator.core.measurements import (ForwardSpeed, NonHolonomic, PseudoMeasurements,
+                                              ZeroAngularRate, ZeroVelocity)
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, LocalEnu, gravity_n
-from slip_estimator.core.slip_model import SlipModel
+from slip_estimator.core.slip_model import AidDecision, SlipModel
 from slip_estimator.core.state import NavState
-from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
+from slip_estimator.core.supervisor import GapAction, Supervisor
 from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.track_width import TrackWidthEstimator
 from slip_estimator.core.types import (Health, ImuSample, OdometryEstimate, SlipEstimate,
                                        WheelSample, imu_values_usable, wheel_speeds)
+from slip_estimator.core.wheel_aid import WheelAid
 from slip_estimator.core.wheel_odometry import WheelDeadReckoning
 
 _NS = 1_000_000_000
@@ -67,18 +64,15 @@ class SlipEstimator:
         self.l_bw_b = -(frames.C_FLU_FRD @ np.asarray(p.imu_to_base_xyz, dtype=float))
         self._l_bw_b = tuple(self.l_bw_b.tolist())
         self._wheel_latency_ns = int(p.wheel_latency_s * _NS)
-        self.zupt = ZeroVelocity(p.zupt_velocity_std)
-        self.zaru = ZeroAngularRate(self.planet, p.zaru_rate_std, p.gyro_noise_density)
-        self.nhc = NonHolonomic(self.planet, self.l_bw_b, p.nhc_lateral_std, p.nhc_vertical_std)
-        self.forward = ForwardSpeed(self.planet, self.l_bw_b, p.wheel_aid_std)
+        self.constraints = PseudoMeasurements(
+            ZeroVelocity(p.zupt_velocity_std),
+            ZeroAngularRate(self.planet, p.zaru_rate_std, p.gyro_noise_density),
+            NonHolonomic(self.planet, self.l_bw_b, p.nhc_lateral_std, p.nhc_vertical_std))
+        self.forward = ForwardSpeed(self.planet, self.l_bw_b)
         self.turn = TurnDetector(p.turn_rate_threshold)
-        # Counters survive filter resets: they are the node's record of what happened.
-        self.counters: dict[str, int] = dict.fromkeys((
-            'imu_samples', 'imu_rejected', 'imu_gaps', 'imu_saturated', 'wheel_samples',
-            'wheel_rejected', 'wheel_late', 'wheel_future', 'zupt', 'zaru', 'nhc', 'wheel',
-            'gated', 'resets', 'recoveries', 'divergence_resets', 'covariance_repairs',
-            'slip_estimates', 'slip_unknown'), 0)
+        # These survive filter resets: they are the node's record of what happened.
         self.supervisor = Supervisor(p)
+        self.counters = self.supervisor.counters
         self.monitor = ResidualMonitor()
         self.timing = WheelTimingMonitor()
         self.track = TrackWidthEstimator(p.track_width)
@@ -89,7 +83,7 @@ class SlipEstimator:
         p = self.params
         self.filter = ErrorStateFilter(p, self.planet)
         self.stamp_ns: int | None = None
-        self._rate = ImuRate()
+        self.imu_rate = ImuRate()
         self.stationary = StationaryDetector(
             max(2, int(round(p.stationary_window_s * 250.0))), p.stationary_accel_std,
             p.stationary_gyro_std, p.stationary_wheel_speed_mps, int(p.wheel_timeout_s * _NS))
@@ -97,17 +91,16 @@ class SlipEstimator:
         self.alignment = AlignmentCollector(p.alignment_duration_s, p.motion_alignment_after_s,
                                             float(np.linalg.norm(g_n)))
         self._aligned_ns: int | None = None
-        self._odom_frame: LocalEnu | None = None
+        self.odom_frame: LocalEnu | None = None  # origin: base_link at alignment
         # ENU yaw of base_link x from the heading (clockwise from north).
         self._wheel_odo = WheelDeadReckoning(math.radians(90.0 - p.initial_heading_deg))
         self._next_update_ns: int | None = None
-        self._omega_ib_b = np.zeros(3)
+        self.omega_ib_b = np.zeros(3)  # the last gyro sample, rad/s
         self.history = ForwardSpeedHistory(self._l_bw_b)
         self._waiting_wheels: deque[WheelSample] = deque()  # stamped ahead of the INS
-        self.is_stationary = False
-        self.is_turning = False
+        self.is_stationary = self.is_turning = False
         self.supervisor.reset()
-        self.slip_model = SlipModel(p)
+        self.wheel_aid = WheelAid(p)
 
     # ------------------------------------------------------------------ read-only views
     @property
@@ -136,19 +129,8 @@ class SlipEstimator:
         return self.alignment.imu_problem
 
     @property
-    def omega_ib_b(self) -> np.ndarray:
-        """The last gyro sample, rad/s."""
-        return self._omega_ib_b
-
-    @property
-    def nominal_dt_s(self) -> float:
-        """The IMU's nominal sample interval, s."""
-        return self._rate.dt_s
-
-    @property
-    def odom_origin_llh(self) -> np.ndarray | None:
-        """Curvilinear position of base_link at alignment: the origin of odom."""
-        return None if self._odom_frame is None else self._odom_frame.llh0
+    def slip_model(self) -> SlipModel:
+        return self.wheel_aid.slip_model
 
     # ------------------------------------------------------------------ inputs
     def add_imu(self, sample: ImuSample) -> list[SlipEstimate]:
@@ -161,7 +143,7 @@ class SlipEstimator:
             return []
         self.counters['imu_samples'] += 1
         prev_ns, self.stamp_ns = self.stamp_ns, sample.stamp_ns
-        self._omega_ib_b = sample.omega_ib_b
+        self.omega_ib_b = sample.omega_ib_b
         # 2. the detectors see every sample
         self.stationary.add_imu(f_l, w_l)
         self.timing.add_imu(sample.stamp_ns, w_l[2])
@@ -169,14 +151,21 @@ class SlipEstimator:
             return self._slip_before_alignment()
         # 3. the time step: clipping, gaps (a long one is not integrated across), the IMU rate
         dt = (sample.stamp_ns - prev_ns) * 1e-9
-        if self._imu_step(dt, f_l, w_l) is GapAction.RECOVER:
-            self._recover(sample.stamp_ns, dt, 'IMU gap')
-            return self._evaluate_reached_wheels()
+        gap = self.supervisor.imu_step(sample.stamp_ns, dt, f_l, w_l, self.aligned)
+        if gap is not GapAction.NONE:
+            self.slip_model.interrupt()  # no step test across a hole in the INS
+            if gap is GapAction.RECOVER:
+                self._recover(sample.stamp_ns, dt, 'IMU gap')
+                return self._evaluate_reached_wheels()
+        elif self.imu_rate.add(dt):
+            n = max(2, int(round(self.params.stationary_window_s / self.imu_rate.dt_s)))
+            if n != self.stationary.window_samples:
+                self.stationary.resize(n)
         # 4. alignment
         if not self.aligned:
             start = self.alignment.add_imu(sample.f_ib_b, sample.omega_ib_b, sample.stamp_ns,
                                            self.stationary.is_stationary(sample.stamp_ns),
-                                           self._rate.dt_s)
+                                           self.imu_rate.dt_s)
             if start is not None:
                 self._align(start, sample.stamp_ns)
             return self._slip_before_alignment()
@@ -184,7 +173,7 @@ class SlipEstimator:
         # samples, and 6. pseudo-measurements and the filter-health check at the first
         # propagation epoch after they are due (an update never forces an extra propagation)
         if self.filter.mechanize(f_l, w_l, dt):
-            self._predict_covariance()
+            self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
             if sample.stamp_ns >= self._next_update_ns:
                 self._pseudo_measurements(sample.stamp_ns)
                 self._check_filter_health(sample.stamp_ns)
@@ -224,31 +213,14 @@ class SlipEstimator:
         # 4. evaluate what the INS has reached
         return self._evaluate_reached_wheels()
 
-    def _imu_step(self, dt: float, f_l: list[float], w_l: list[float]) -> GapAction:
-        """Clipping and gaps as the supervisor judges them; the IMU rate learnt otherwise."""
-        if self.supervisor.saturated(f_l, w_l):
-            self.counters['imu_saturated'] += 1
-            self.supervisor.event(self.stamp_ns, 'IMU at its measurement range (clipping)')
-        action = self.supervisor.imu_gap(dt, self.aligned)
-        if action is not GapAction.NONE:
-            self.counters['imu_gaps'] += 1
-            self.supervisor.event(self.stamp_ns, f'IMU gap of {dt:.2f} s')
-            self.slip_model.interrupt()  # no step test across a hole in the INS
-        elif self._rate.add(dt):
-            n = max(2, int(round(self.params.stationary_window_s / self._rate.dt_s)))
-            if n != self.stationary.window_samples:
-                self.stationary.resize(n)
-        return action
-
-    # ------------------------------------------------------------------ alignment, recovery
+    # ------------------------------------------------------------------ alignment, health
     def _align(self, start: AlignmentStart, stamp_ns: int) -> None:
         """Start the filter; in motion, slip is unknown for ``recovery_s`` while the wheels
         re-anchor the velocity (zero slip assumed)."""
         p = self.params
         st, P = filter_start(start, p, self.planet, self.l_bw_b)
         self.filter.start(st, P, float(np.linalg.norm(start.f_b)))
-        # base_link position at alignment: the origin of odom.
-        self._odom_frame = LocalEnu(self.planet, outputs.base_llh(st, self.l_bw_b, self.planet))
+        self.odom_frame = LocalEnu(self.planet, outputs.base_llh(st, self.l_bw_b, self.planet))
         self._next_update_ns = self._aligned_ns = stamp_ns
         if start.speed_mps is not None:
             self.slip_model.reset(from_rest=False)
@@ -263,51 +235,46 @@ class SlipEstimator:
         Attitude and position are kept (a rover does not teleport, but it may have moved for
         ``gap_s``); velocity restarts from the last wheel speed; slip is "unknown" until
         ``recovery_s`` has passed and the wheel aid has re-anchored the velocity."""
-        p = self.params
-        self.counters['recoveries'] += 1
-        self.supervisor.event(self.stamp_ns, f'{reason}: velocity re-initialised, slip unknown '
-                              f'for {p.recovery_s:.0f} s')
+        self.supervisor.start_recovery(stamp_ns, reason)
         rim = self._waiting_wheels[-1].rim_speed_mps if self._waiting_wheels else 0.0
-        st = self.filter.state
-        st.v_eb_n = st.C_b_n[:, 0] * rim
-        st.C_b_n = frames.orthonormalize(st.C_b_n)
-        self.filter.P = recovery_covariance(p, self.planet, st, gap_s)
-        self.filter.clear_accumulators()
+        self.filter.restart_velocity(rim, lambda st: recovery_covariance(
+            self.params, self.planet, st, gap_s))
         self.history.clear()
         self.slip_model.reset(from_rest=False)  # the velocity now comes from the rim
-        self.supervisor.start_recovery(stamp_ns)
         self._next_update_ns = stamp_ns
 
     def _check_filter_health(self, stamp_ns: int) -> None:
         """Carry out the supervisor's verdict on the filter (reset, repair, recover)."""
-        verdict = check_filter(self.params, self.filter.state, self.filter.P)
+        verdict = self.supervisor.check_filter(stamp_ns, self.filter.state, self.filter.P)
         if verdict.reset:
-            self.counters['resets'] += 1
-            self.supervisor.event(self.stamp_ns,
-                                  'non-finite filter state: full reset, re-aligning')
             self._reset_filter()
             return
         if verdict.repaired_P is not None:
             self.filter.P = verdict.repaired_P
-            self.counters['covariance_repairs'] += 1
-            self.supervisor.event(self.stamp_ns,
-                                  'covariance lost positive definiteness: repaired')
         if verdict.recover_reason is not None:
-            self.counters['divergence_resets'] += 1
             if verdict.b_a is not None:
                 self.filter.state.b_a, self.filter.state.b_g = verdict.b_a, verdict.b_g
             self._recover(stamp_ns, 0.0, verdict.recover_reason)
 
-    # ------------------------------------------------------------------ filter steps
-    def _predict_covariance(self) -> None:
-        self.filter.predict_covariance(self.stationary.window, self._rate.dt_s)
-
+    # ------------------------------------------------------------------ filter updates
     def covariance(self) -> np.ndarray:
         """Error-state covariance at the time of the last IMU sample (flushes the decimated
         propagation)."""
         if self.aligned:
-            self._predict_covariance()
+            self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
         return self.filter.P
+
+    def _pseudo_measurements(self, stamp_ns: int) -> None:
+        """The detectors decide, then ZUPT + ZARU (at rest) or the NHC, one after the other."""
+        flt = self.filter
+        flt.last_records = []
+        self._next_update_ns = stamp_ns + int(_NS / self.params.update_rate_hz)
+        w_mean, n = flt.take_mean_rate()
+        self.is_stationary = self.stationary.is_stationary(stamp_ns)
+        self.is_turning = self.turn.is_turning(w_mean - flt.state.b_g, flt.state.C_b_n)
+        for c in self.constraints.select(flt.state, w_mean, max(1, n) * self.imu_rate.dt_s,
+                                         self.is_stationary, self.is_turning):
+            self._update(c.name, c.innovation, c.H, c.R, c.channels)
 
     def _update(self, name: str, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
                 channels: tuple[str, ...] | None = None, excluded: bool = False) -> None:
@@ -315,38 +282,14 @@ class SlipEstimator:
         model's free speed); counted and fed to the residual monitor."""
         outcome = self.filter.update(name, innovation, H, R)
         rec = outcome.record
-        if outcome.gated:
-            self.counters['gated'] += 1
+        self.counters['gated'] += outcome.gated
         if math.isfinite(rec.nis):
-            if channels is None:
-                self.monitor.add(name, innovation, rec.S)
-            else:
-                for i, channel in enumerate(channels):
-                    self.monitor.add(channel, innovation[i:i + 1], rec.S[i:i + 1, i:i + 1])
+            for i, channel in enumerate(channels or (name,)):
+                k = slice(None) if channels is None else slice(i, i + 1)
+                self.monitor.add(channel, innovation[k], rec.S[k, k])
         if outcome.correction is not None:
             self.counters[name] += 1
             self.history.apply(outcome.correction, aid=excluded)
-
-    def _pseudo_measurements(self, stamp_ns: int) -> None:
-        """ZUPT + ZARU at rest, else the non-holonomic constraint (vertical only in a turn)."""
-        flt = self.filter
-        flt.last_records = []
-        self._next_update_ns = stamp_ns + int(_NS / self.params.update_rate_hz)
-        w_mean, n = flt.take_mean_rate()
-        period = max(1, n) * self._rate.dt_s
-        self.is_stationary = self.stationary.is_stationary(stamp_ns)
-        st = flt.state
-        self.is_turning = self.turn.is_turning(w_mean - st.b_g, st.C_b_n)
-        if self.is_stationary:
-            self._update('zupt', self.zupt.innovation(st), self.zupt.jacobian(st),
-                         self.zupt.covariance())
-            self._update('zaru', self.zaru.innovation(st, w_mean), self.zaru.jacobian(st),
-                         self.zaru.covariance(period))
-        else:
-            rows = (2,) if self.is_turning else (1, 2)
-            self._update('nhc', self.nhc.innovation(st, w_mean, rows),
-                         self.nhc.jacobian(st, rows), self.nhc.covariance(rows),
-                         tuple(self.nhc.channels[r] for r in rows))
 
     # ------------------------------------------------------------------ wheel samples
     def _evaluate_reached_wheels(self) -> list[SlipEstimate]:
@@ -358,9 +301,7 @@ class SlipEstimator:
             est = self._evaluate_wheel(waiting.popleft())
             if est is not None:
                 out.append(est)
-        stale = self.supervisor.wheels_stale(self.stamp_ns, self._aligned_ns)
-        if stale is not None:
-            self.supervisor.event(self.stamp_ns, stale)
+        if self.supervisor.wheels_stale(self.stamp_ns, self._aligned_ns):
             out.append(self._unknown(self.stamp_ns))
         return out
 
@@ -375,48 +316,36 @@ class SlipEstimator:
         if wheel.rim_speed_left_mps is not None and wheel.rim_speed_right_mps is not None:
             self.track.add(-at.yaw_rate_b_rps,
                            wheel.rim_speed_right_mps - wheel.rim_speed_left_mps)
-        w = wheel.rim_speed_mps
         if self.supervisor.recovering(wheel.stamp_ns):
-            # Re-anchor the velocity on the wheels (zero slip assumed, so slip is unknown).
-            if self.params.wheel_aid != 'off' and not self.is_turning:
-                self._aid_update(w, at.v_fwd_mps, self.forward.recovery_variance(w),
-                                 excluded=False)
-            return self._unknown(wheel.stamp_ns, w)
+            self._apply_aid(self.wheel_aid.reanchor(wheel.rim_speed_mps, self.is_turning), at)
+            return self._unknown(wheel.stamp_ns, wheel.rim_speed_mps)
         self.counters['slip_estimates'] += 1
-        est = outputs.slip_estimate(
-            wheel, at.v_fwd_mps, at.yaw_rate_b_rps,
-            self.filter.variance(self.forward.jacobian(self.filter.state)), self.params,
-            self.is_stationary, self.track.width_m)
-        if self.params.wheel_aid == 'hold':
-            self._wheel_aid(wheel, at, est)
+        st = self.filter.state
+        est = outputs.slip_estimate(wheel, at.v_fwd_mps, at.yaw_rate_b_rps,
+                                    self.filter.variance(self.forward.jacobian(st)),
+                                    self.params, self.is_stationary, self.track.width_m)
+        self._apply_aid(self.wheel_aid.decide(wheel, at, est, st.C_b_n, self.is_turning), at)
         return est
 
-    def _wheel_aid(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate) -> None:
-        """Let the slip model (:mod:`slip_estimator.core.slip_model`) decide the wheel aid."""
-        w = wheel.rim_speed_mps
-        moving = est.slip_class > 0 and abs(w) >= self.params.moving_speed_threshold
-        st = self.filter.state
-        pitch_rad = -math.asin(max(-1.0, min(1.0, float(st.C_b_n[2, 0]))))
-        d = self.slip_model.step(wheel.stamp_ns, w, at.v_fwd_mps, at.v_free_mps, moving,
-                                 self.is_turning, pitch_rad, at.aid_accel_mps2)
+    def _apply_aid(self, d: AidDecision | None, at: HistoryPoint) -> None:
+        """Carry out a wheel-aid decision against the history point ``at`` of its instant."""
         if d is None:
             return
         if d.held_slip is not None:
             self.monitor.add_held_slip(d.held_slip)
-        if d.anchor:
-            # A known jump of the INS error (a change, or a settled measurement): not gated.
-            correction = self.filter.anchor(self.forward.innovation(d.z_mps, at.v_fwd_mps),
-                                            self.forward.jacobian(st),
-                                            self.forward.covariance(d.var_mps2))
-            self.history.apply(correction, aid=not d.repair)
+        if not d.anchor:
+            self._aid_update(d.z_mps, at.v_fwd_mps, d.var_mps2, excluded=not d.repair)
             return
-        self._aid_update(d.z_mps, at.v_fwd_mps, d.var_mps2, excluded=not d.repair)
+        # A known jump of the INS error (a change, or a settled measurement): not gated.
+        correction = self.filter.anchor(self.forward.innovation(d.z_mps, at.v_fwd_mps),
+                                        self.forward.jacobian(self.filter.state),
+                                        self.forward.covariance(d.var_mps2))
+        self.history.apply(correction, aid=not d.repair)
 
     def _aid_update(self, z_mps: float, v_hist: float, var: float,
                     excluded: bool = True) -> None:
-        """Forward-speed update of the base point with the aid value ``z_mps`` at the wheel
-        sample time (``v_hist`` is the INS value then; the validation study overrides this
-        to release the aid)."""
+        """Gated forward-speed update towards the aid value ``z_mps`` (``v_hist``: the INS
+        value at the wheel sample's instant). The validation study overrides it."""
         self._update('wheel', self.forward.innovation(z_mps, v_hist),
                      self.forward.jacobian(self.filter.state), self.forward.covariance(var),
                      excluded=excluded)
@@ -442,26 +371,11 @@ class SlipEstimator:
             return (self._wheel_odo.estimate(self.stamp_ns)
                     if self.imu_problem is not None and self.stamp_ns is not None else None)
         return outputs.odometry(self.stamp_ns, self.filter.state, self.filter.P,
-                                self._omega_ib_b, self._l_bw_b, self.planet, self._odom_frame,
-                                self.params.gyro_noise_density ** 2 / self._rate.dt_s)
+                                self.omega_ib_b, self._l_bw_b, self.planet, self.odom_frame,
+                                self.params.gyro_noise_density ** 2 / self.imu_rate.dt_s)
 
     def health(self) -> Health:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""
-        values: dict = dict(self.counters)
-        sup = self.supervisor
-        if not self.aligned:
-            return sup.health(values, {}, [], self.stamp_ns, None, self.filter.P,
-                              self.imu_problem)
-        values.update({'stationary': self.is_stationary, 'turning': self.is_turning})
-        figures = {f'nis_mean_{k}': v for k, v in self.filter.nis_mean.items()}
-        figures.update(self.monitor.values())
-        notes = [f'suspected: {text}' for text in self.monitor.suspects()]
-        figures['wheel_lag_s'] = self.timing.lag_s
-        figures['wheel_lag_correlation'] = self.timing.correlation
-        figures['effective_track_width_m'] = self.track.width_m
-        figures['effective_track_ratio'] = self.track.width_m / self.params.track_width
-        timing = self.timing.suspicion(self.params.wheel_latency_s)
-        if timing is not None:
-            notes.append(f'suspected: {timing}')
-        return sup.health(values, figures, notes, self.stamp_ns, self.filter.state,
-                          self.filter.P, self.imu_problem)
+        return self.supervisor.health(self.stamp_ns, self.filter,
+                                      (self.is_stationary, self.is_turning), self.monitor,
+                                      self.timing, self.track.width_m, self.imu_problem)

@@ -14,6 +14,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -90,9 +91,19 @@ class ErrorStateFilter:
         """Begin from an aligned state with covariance ``P`` (``g_mps2``: gravity there)."""
         self.state, self.P, self.g_mps2 = state, P, g_mps2
 
+    def restart_velocity(self, v_fwd_mps: float,
+                         covariance: Callable[[NavState], np.ndarray]) -> None:
+        """Recovery: the velocity restarts at ``v_fwd_mps`` along body x, attitude and
+        position are kept, P becomes ``covariance(state)``, the interval integrated since the
+        last propagation is dropped (it is not the body's)."""
+        st = self.state
+        st.v_eb_n = st.C_b_n[:, 0] * v_fwd_mps
+        st.C_b_n = frames.orthonormalize(st.C_b_n)
+        self.P = covariance(st)
+        self.clear_accumulators()
+
     def clear_accumulators(self) -> None:
-        """Drop the interval integrated since the last covariance propagation (after a
-        recovery: it is not the body's)."""
+        """Drop the interval integrated since the last covariance propagation."""
         # Per-sample accumulators as lists of floats (numpy costs ~1 us per 3-vector
         # operation; the element-wise float sums are the same).
         self._acc_tau = 0.0

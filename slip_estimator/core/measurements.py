@@ -8,6 +8,9 @@ covariance R. Analytic Jacobians are checked against finite differences in the t
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
+from typing import NamedTuple
+
 import numpy as np
 
 from slip_estimator.core.frames import cross, skew
@@ -136,10 +139,8 @@ class ForwardSpeed:
 
     name = 'wheel'
 
-    def __init__(self, planet: Planet, l_bw_b: np.ndarray,
-                 recovery_std_mps: float = 0.05) -> None:
+    def __init__(self, planet: Planet, l_bw_b: np.ndarray) -> None:
         self._point = NonHolonomic(planet, l_bw_b)
-        self.recovery_std_mps = recovery_std_mps
 
     def innovation(self, z_mps: float, v_fwd_mps: float) -> np.ndarray:
         """``z - v_fwd``, m/s, with ``v_fwd`` the INS forward speed at the aid's instant."""
@@ -153,7 +154,37 @@ class ForwardSpeed:
         """``R = [[var]]``, m^2/s^2."""
         return np.array([[var_mps2]])
 
-    def recovery_variance(self, rim_speed_mps: float) -> float:
-        """Variance of a re-anchoring on the rim speed with zero slip assumed, m^2/s^2: the aid
-        noise plus 10 % of the speed for the unknown slip."""
-        return self.recovery_std_mps ** 2 + (0.1 * rim_speed_mps) ** 2
+
+class Constraint(NamedTuple):
+    """One pseudo-measurement to apply: model name, ``z - h(x)``, H, R, and the names of its
+    rows for the residual monitor (None: the model's name)."""
+
+    name: str
+    innovation: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    channels: tuple[str, ...] | None = None
+
+
+class PseudoMeasurements:
+    """What the rover's physics allow now: ZUPT + ZARU at rest, else the non-holonomic
+    constraint (vertical only while a skid-steer turn violates the lateral one)."""
+
+    def __init__(self, zupt: ZeroVelocity, zaru: ZeroAngularRate, nhc: NonHolonomic) -> None:
+        self.zupt, self.zaru, self.nhc = zupt, zaru, nhc
+
+    def select(self, state: NavState, omega_ib_b_mean: np.ndarray, period_s: float,
+               stationary: bool, turning: bool) -> Iterator[Constraint]:
+        """The constraints in order, each evaluated when the previous one has been applied
+        (``state`` is then the corrected one): a generator, to be consumed one by one."""
+        if stationary:
+            yield Constraint('zupt', self.zupt.innovation(state), self.zupt.jacobian(state),
+                             self.zupt.covariance())
+            yield Constraint('zaru', self.zaru.innovation(state, omega_ib_b_mean),
+                             self.zaru.jacobian(state), self.zaru.covariance(period_s))
+            return
+        rows = (2,) if turning else (1, 2)
+        nhc = self.nhc
+        yield Constraint('nhc', nhc.innovation(state, omega_ib_b_mean, rows),
+                         nhc.jacobian(state, rows), nhc.covariance(rows),
+                         tuple(nhc.channels[r] for r in rows))

@@ -1,9 +1,10 @@
 """The estimator's supervisor: health checks, recovery, resets, wheel timeout, health report.
 
 It decides and reports; it never changes the filter itself. Each check returns a decision
-(:class:`FilterVerdict`, :class:`GapAction`, an event text) that the facade carries out, and
-the supervisor keeps only its own bookkeeping: the recovery window, the wheel stream's
-arrivals, and the recent events that the health message names.
+(:class:`FilterVerdict`, :class:`GapAction`, slip unknown or not) that the facade carries out,
+and the supervisor keeps only its own bookkeeping: the counters (the node's record of what
+happened), the recent events that the health message names, the recovery window and the
+wheel stream's arrivals.
 """
 from __future__ import annotations
 
@@ -15,8 +16,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from slip_estimator.core import kalman
+from slip_estimator.core.diagnosis import ResidualMonitor
+from slip_estimator.core.filter import ErrorStateFilter
 from slip_estimator.core.params import Params
 from slip_estimator.core.state import VEL, NavState
+from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.types import Health
 
 _NS = 1_000_000_000
@@ -89,6 +93,11 @@ class Supervisor:
         self.params = params
         self._recovery_ns = int(params.recovery_s * _NS)
         self._wheel_timeout_ns = int(params.wheel_timeout_s * _NS)
+        self.counters: dict[str, int] = dict.fromkeys((
+            'imu_samples', 'imu_rejected', 'imu_gaps', 'imu_saturated', 'wheel_samples',
+            'wheel_rejected', 'wheel_late', 'wheel_future', 'zupt', 'zaru', 'nhc', 'wheel',
+            'gated', 'resets', 'recoveries', 'divergence_resets', 'covariance_repairs',
+            'slip_estimates', 'slip_unknown'), 0)
         self.events: deque = deque(maxlen=_EVENTS_HELD)
         self.reset()
 
@@ -101,26 +110,46 @@ class Supervisor:
         self.events.append((stamp_ns, text))
 
     # ------------------------------------------------------------------ IMU
-    def imu_gap(self, dt_s: float, aligned: bool) -> GapAction:
-        """The action an IMU step of ``dt_s`` calls for (records the event)."""
+    def imu_step(self, stamp_ns: int, dt_s: float, f_b: list[float], w_b: list[float],
+                 aligned: bool) -> GapAction:
+        """Clipping (counted, named) and the action an IMU step of ``dt_s`` calls for."""
         p = self.params
+        if ((p.accel_range_mps2 > 0.0 and max(map(abs, f_b)) >= 0.999 * p.accel_range_mps2)
+                or (p.gyro_range_rps > 0.0
+                    and max(map(abs, w_b)) >= 0.999 * p.gyro_range_rps)):
+            self.counters['imu_saturated'] += 1
+            self.event(stamp_ns, 'IMU at its measurement range (clipping)')
         if dt_s <= p.max_imu_gap_s:
             return GapAction.NONE
+        self.counters['imu_gaps'] += 1
+        self.event(stamp_ns, f'IMU gap of {dt_s:.2f} s')
         if aligned and dt_s > p.recovery_gap_s:
             # Not integrated across: one sample says nothing about minutes of motion.
             return GapAction.RECOVER
         return GapAction.INTERRUPT
 
-    def saturated(self, f_b: list[float], w_b: list[float]) -> bool:
-        """An IMU sample at its measurement range (clipping), when the ranges are known."""
-        p = self.params
-        return ((p.accel_range_mps2 > 0.0 and max(map(abs, f_b)) >= 0.999 * p.accel_range_mps2)
-                or (p.gyro_range_rps > 0.0
-                    and max(map(abs, w_b)) >= 0.999 * p.gyro_range_rps))
+    def check_filter(self, stamp_ns: int, state: NavState, P: np.ndarray) -> FilterVerdict:
+        """:func:`check_filter`, counted and named."""
+        verdict = check_filter(self.params, state, P)
+        if verdict.reset:
+            self.counters['resets'] += 1
+            self.event(stamp_ns, 'non-finite filter state: full reset, re-aligning')
+            return verdict
+        if verdict.repaired_P is not None:
+            self.counters['covariance_repairs'] += 1
+            self.event(stamp_ns, 'covariance lost positive definiteness: repaired')
+        if verdict.recover_reason is not None:
+            self.counters['divergence_resets'] += 1
+        return verdict
 
     # ------------------------------------------------------------------ recovery
-    def start_recovery(self, stamp_ns: int) -> None:
-        """Slip is unknown for ``recovery_s`` from ``stamp_ns``."""
+    def start_recovery(self, stamp_ns: int, reason: str | None = None) -> None:
+        """Slip is unknown for ``recovery_s`` from ``stamp_ns``; a ``reason`` (IMU gap,
+        divergence) counts as a recovery and is named."""
+        if reason is not None:
+            self.counters['recoveries'] += 1
+            self.event(stamp_ns, f'{reason}: velocity re-initialised, slip unknown for '
+                       f'{self.params.recovery_s:.0f} s')
         self.recovering_until_ns = stamp_ns + self._recovery_ns
 
     def recovering(self, stamp_ns: int) -> bool:
@@ -141,27 +170,33 @@ class Supervisor:
         self._last_wheel_ns = stamp_ns
         self._last_stale_ns = None
 
-    def wheels_stale(self, stamp_ns: int, aligned_ns: int | None) -> str | None:
-        """Wheel dropout, or no wheel data at all: the event text once per timeout (slip is
-        then reported unknown instead of guessed), else None."""
+    def wheels_stale(self, stamp_ns: int, aligned_ns: int | None) -> bool:
+        """Wheel dropout, or no wheel data at all: True (and named) once per timeout, when slip
+        is to be reported unknown instead of guessed."""
         last = self._last_stale_ns if self._last_stale_ns is not None else self._last_wheel_ns
         if last is None:
             last = aligned_ns
         if last is None or stamp_ns - last <= self._wheel_timeout_ns:
-            return None
+            return False
         self._last_stale_ns = stamp_ns
         if self._last_wheel_ns is None:
-            return 'no wheel data: slip unknown, INS with ZUPT/ZARU only'
-        return (f'wheel data missing for {(stamp_ns - self._last_wheel_ns) * 1e-9:.1f} s: '
-                'slip unknown')
+            self.event(stamp_ns, 'no wheel data: slip unknown, INS with ZUPT/ZARU only')
+        else:
+            self.event(stamp_ns, f'wheel data missing for '
+                       f'{(stamp_ns - self._last_wheel_ns) * 1e-9:.1f} s: slip unknown')
+        return True
 
     # ------------------------------------------------------------------ report
-    def health(self, values: dict, figures: dict, notes: list[str], stamp_ns: int | None,
-               state: NavState | None, P: np.ndarray, imu_problem: str | None) -> Health:
-        """The health report: ``values`` (the counters, and the detectors' state once
-        aligned), then the filter's spread and biases, then ``figures`` (the parts'); ``notes``
-        (the parts' suspicions), the events of the last 10 s, the recovery, the bias bounds."""
+    def health(self, stamp_ns: int | None, flt: ErrorStateFilter,
+               motion: tuple[bool, bool],
+               monitor: ResidualMonitor, timing: WheelTimingMonitor, track_width_m: float,
+               imu_problem: str | None) -> Health:
+        """The health report from the parts' figures and suspicions (``motion``: stationary
+        and turning at the last update), the events of the last 10 s, the recovery and the
+        bias bounds."""
         p = self.params
+        values: dict = dict(self.counters)
+        state = flt.state
         if state is None and imu_problem is not None:
             return Health(2, f'IMU not usable, not aligning (odometry from the wheels only, slip '
                           f'unknown): {imu_problem}', values)
@@ -170,14 +205,24 @@ class Supervisor:
             return Health(1, 'aligning: waiting for a stationary window or '
                           f'{p.motion_alignment_after_s:.1f} s of IMU and wheel data'
                           + (f' (after: {recent})' if recent else ''), values)
-        sig = np.sqrt(np.maximum(np.diag(P), 0.0))
+        sig = np.sqrt(np.maximum(np.diag(flt.P), 0.0))
         values.update({
+            'stationary': motion[0], 'turning': motion[1],
             'velocity_std_mps': float(np.linalg.norm(sig[VEL])),
             'heading_std_rad': float(sig[2]),
             'accel_bias_mps2': [float(x) for x in state.b_a],
             'gyro_bias_rps': [float(x) for x in state.b_g],
         })
-        values.update(figures)
+        for k, v in flt.nis_mean.items():
+            values[f'nis_mean_{k}'] = v
+        values.update(monitor.values())
+        notes = [f'suspected: {text}' for text in monitor.suspects()]
+        values['wheel_lag_s'], values['wheel_lag_correlation'] = timing.lag_s, timing.correlation
+        values['effective_track_width_m'] = track_width_m
+        values['effective_track_ratio'] = track_width_m / p.track_width
+        lag_note = timing.suspicion(p.wheel_latency_s)
+        if lag_note is not None:
+            notes.append(f'suspected: {lag_note}')
         level = 1 if notes else 0
         if np.any(np.abs(state.b_g) > 5.0 * p.initial_gyro_bias_std):
             level = 1
