@@ -310,11 +310,11 @@ def odometry_matrices(est: SlipEstimator):
     M[:3, :3] = frames.C_ENU_NED @ np.linalg.inv(T)
     M[3:, 3:] = frames.C_ENU_NED
     idx = np.r_[POS, ATT]
-    pose = M @ est.P[np.ix_(idx, idx)] @ M.T
+    pose = M @ est.filter.P[np.ix_(idx, idx)] @ M.T
     M[:3, :3] = frames.C_FLU_FRD @ st.C_b_n.T
     M[3:, 3:] = frames.C_FLU_FRD
     idx = np.r_[VEL, BG]
-    twist = M @ est.P[np.ix_(idx, idx)] @ M.T
+    twist = M @ est.filter.P[np.ix_(idx, idx)] @ M.T
     twist[3:, 3:] += np.eye(3) * est.params.gyro_noise_density ** 2 / est.imu_rate.dt_s
     return (p_o, quaternion_of(C_base_odom), frames.C_FLU_FRD @ v_b, frames.C_FLU_FRD @ w_b, kalman.symmetrize(pose),
             kalman.symmetrize(twist))

@@ -149,11 +149,11 @@ class AlignmentCollector:
     REP-145 is named (:attr:`imu_problem`) and not aligned on: no estimate beats a wrong one.
     """
 
-    def __init__(self, alignment_duration_s: float, motion_alignment_after_s: float,
-                 gravity_mps2: float) -> None:
-        self._duration_s = alignment_duration_s
-        self._motion_after_ns = motion_alignment_after_s * _NS
-        self._gravity_mps2 = gravity_mps2
+    def __init__(self, p: Params, planet: Planet) -> None:
+        self._duration_s = p.alignment_duration_s
+        self._motion_after_ns = p.motion_alignment_after_s * _NS
+        g_n = gravity_n(planet, math.radians(p.initial_latitude_deg), p.initial_height_m)
+        self._gravity_mps2 = float(np.linalg.norm(g_n))
         self._rows: list[np.ndarray] = []
         self.motion = MotionStart()
         self.imu_problem: str | None = None

@@ -1,20 +1,12 @@
 """The estimator facade: IMU and wheel samples in, odometry, slip and health out.
 
-It owns its parts and moves data between them by calls and return values; no part calls
-back into it: the :class:`~slip_estimator.core.filter.ErrorStateFilter` (strapdown INS,
-covariance prediction, gated updates), the measurement models with their own R
-(:mod:`~slip_estimator.core.measurements`), the
-:class:`~slip_estimator.core.alignment.AlignmentCollector`, the detectors and monitors, the
-:class:`~slip_estimator.core.supervisor.Supervisor` (filter health, recovery, wheel timeout,
-counters), the :class:`~slip_estimator.core.history.ForwardSpeedHistory`, the
-:class:`~slip_estimator.core.wheel_aid.WheelAid` (the slip model's decisions) and the pure
-:mod:`~slip_estimator.core.outputs`.
-
-A wheel sample describes the body ``wheel_latency_s`` before its stamp, which the INS may not
-have reached yet: :meth:`SlipEstimator.add_wheel` queues it, and the call that brings the INS
-past its stamp evaluates it (:meth:`SlipEstimator._evaluate_reached_wheels`: the slip, then
-the wheel aid). ``wheel_aid = 'off'`` is the paper's method (the README says why the wheel aid
-exists).
+It owns its parts (:class:`~slip_estimator.core.filter.ErrorStateFilter`, the measurement
+models, the alignment collector, detectors and monitors, the supervisor, the forward-speed
+history, the wheel aid, the pure outputs) and moves data between them by calls and return
+values; no part calls back into it. A wheel sample describes the body ``wheel_latency_s``
+before its stamp, which the INS may not have reached yet: :meth:`SlipEstimator.add_wheel`
+queues it, and the call that brings the INS past its stamp evaluates it
+(:meth:`SlipEstimator._evaluate_reached_wheels`: its slip, then the wheel aid).
 """
 from __future__ import annotations
 
@@ -26,22 +18,21 @@ import numpy as np
 from slip_estimator.core import frames, outputs
 from slip_estimator.core.alignment import (AlignmentCollector, AlignmentStart, filter_start,
                                            recovery_covariance)
-from slip_estimator.core.detectors import ImuRate, StationaryDetector, TurnDetector
+from slip_estimator.core.detectors import ImuRate, StationaryDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
 from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint
-from slip_estimator.core.kalman import UpdateRecord
-from slip_estimator.core.measurements import (ForwardSpeed, NonHolonomic, PseudoMeasurements,
-                                              ZeroAngularRate, ZeroVelocity)
+from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.params import Params
-from slip_estimator.core.planet import PLANETS, LocalEnu, gravity_n
-from slip_estimator.core.slip_model import AidDecision, SlipModel
+from slip_estimator.core.planet import PLANETS, LocalEnu
+from slip_estimator.core.slip_model import AidDecision
 from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor
 from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.track_width import TrackWidthEstimator
 from slip_estimator.core.types import (Health, ImuSample, OdometryEstimate, SlipEstimate,
-                                       WheelSample, imu_values_usable, wheel_speeds)
+                                       WheelSample, wheel_speeds)
+from slip_estimator.core.updater import Updater
 from slip_estimator.core.wheel_aid import WheelAid
 from slip_estimator.core.wheel_odometry import WheelDeadReckoning
 
@@ -50,11 +41,8 @@ _MAX_WAITING_WHEELS = 50
 
 
 class SlipEstimator:
-    """Strapdown INS + 15-state error-state EKF + detectors + slip computation.
-
-    Samples may be added in any interleaving as they arrive; each call returns the slip
-    estimates that became computable (a wheel sample is evaluated once the filter has reached
-    its time, so its slip refers to the body velocity at the wheel sample time).
+    """Strapdown INS + 15-state error-state EKF + detectors + slip computation. Samples may
+    be added in any interleaving; each call returns the slip estimates that became computable.
     """
 
     def __init__(self, params: Params) -> None:
@@ -64,16 +52,12 @@ class SlipEstimator:
         self.l_bw_b = -(frames.C_FLU_FRD @ np.asarray(p.imu_to_base_xyz, dtype=float))
         self._l_bw_b = tuple(self.l_bw_b.tolist())
         self._wheel_latency_ns = int(p.wheel_latency_s * _NS)
-        self.constraints = PseudoMeasurements(
-            ZeroVelocity(p.zupt_velocity_std),
-            ZeroAngularRate(self.planet, p.zaru_rate_std, p.gyro_noise_density),
-            NonHolonomic(self.planet, self.l_bw_b, p.nhc_lateral_std, p.nhc_vertical_std))
         self.forward = ForwardSpeed(self.planet, self.l_bw_b)
-        self.turn = TurnDetector(p.turn_rate_threshold)
         # These survive filter resets: they are the node's record of what happened.
         self.supervisor = Supervisor(p)
         self.counters = self.supervisor.counters
         self.monitor = ResidualMonitor()
+        self.updater = Updater(p, self.planet, self.l_bw_b, self.counters, self.monitor)
         self.timing = WheelTimingMonitor()
         self.track = TrackWidthEstimator(p.track_width)
         self._reset_filter()
@@ -84,25 +68,19 @@ class SlipEstimator:
         self.filter = ErrorStateFilter(p, self.planet)
         self.stamp_ns: int | None = None
         self.imu_rate = ImuRate()
-        self.stationary = StationaryDetector(
-            max(2, int(round(p.stationary_window_s * 250.0))), p.stationary_accel_std,
-            p.stationary_gyro_std, p.stationary_wheel_speed_mps, int(p.wheel_timeout_s * _NS))
-        g_n = gravity_n(self.planet, math.radians(p.initial_latitude_deg), p.initial_height_m)
-        self.alignment = AlignmentCollector(p.alignment_duration_s, p.motion_alignment_after_s,
-                                            float(np.linalg.norm(g_n)))
+        self.stationary = StationaryDetector.for_params(p)
+        self.alignment = AlignmentCollector(p, self.planet)
         self._aligned_ns: int | None = None
         self.odom_frame: LocalEnu | None = None  # origin: base_link at alignment
-        # ENU yaw of base_link x from the heading (clockwise from north).
-        self._wheel_odo = WheelDeadReckoning(math.radians(90.0 - p.initial_heading_deg))
-        self._next_update_ns: int | None = None
+        self._wheel_odo = WheelDeadReckoning(math.radians(90.0 - p.initial_heading_deg))  # ENU
         self.omega_ib_b = np.zeros(3)  # the last gyro sample, rad/s
         self.history = ForwardSpeedHistory(self._l_bw_b)
         self._waiting_wheels: deque[WheelSample] = deque()  # stamped ahead of the INS
-        self.is_stationary = self.is_turning = False
+        self.updater.reset()
         self.supervisor.reset()
         self.wheel_aid = WheelAid(p)
+        self.slip_model = self.wheel_aid.slip_model
 
-    # ------------------------------------------------------------------ read-only views
     @property
     def aligned(self) -> bool:
         """True once the initial alignment is done and the filter runs."""
@@ -114,34 +92,17 @@ class SlipEstimator:
         return self.filter.state
 
     @property
-    def P(self) -> np.ndarray:
-        """Error-state covariance at the last propagation epoch."""
-        return self.filter.P
-
-    @property
-    def last_records(self) -> list[UpdateRecord]:
-        """The update records of the last update epoch."""
-        return self.filter.last_records
-
-    @property
     def imu_problem(self) -> str | None:
         """Why the IMU was refused as non-REP-145 (None: not refused)."""
         return self.alignment.imu_problem
-
-    @property
-    def slip_model(self) -> SlipModel:
-        return self.wheel_aid.slip_model
 
     # ------------------------------------------------------------------ inputs
     def add_imu(self, sample: ImuSample) -> list[SlipEstimate]:
         """Process one IMU sample; return slip estimates that became due."""
         # 1. check the sample
         f_l, w_l = sample.f_ib_b.tolist(), sample.omega_ib_b.tolist()
-        if not (imu_values_usable(f_l, w_l)
-                and (self.stamp_ns is None or sample.stamp_ns > self.stamp_ns)):
-            self.counters['imu_rejected'] += 1
+        if not self.supervisor.accept_imu(sample.stamp_ns, self.stamp_ns, f_l, w_l):
             return []
-        self.counters['imu_samples'] += 1
         prev_ns, self.stamp_ns = self.stamp_ns, sample.stamp_ns
         self.omega_ib_b = sample.omega_ib_b
         # 2. the detectors see every sample
@@ -158,9 +119,7 @@ class SlipEstimator:
                 self._recover(sample.stamp_ns, dt, 'IMU gap')
                 return self._evaluate_reached_wheels()
         elif self.imu_rate.add(dt):
-            n = max(2, int(round(self.params.stationary_window_s / self.imu_rate.dt_s)))
-            if n != self.stationary.window_samples:
-                self.stationary.resize(n)
+            self.stationary.fit_window(self.params.stationary_window_s, self.imu_rate.dt_s)
         # 4. alignment
         if not self.aligned:
             start = self.alignment.add_imu(sample.f_ib_b, sample.omega_ib_b, sample.stamp_ns,
@@ -169,13 +128,14 @@ class SlipEstimator:
             if start is not None:
                 self._align(start, sample.stamp_ns)
             return self._slip_before_alignment()
-        # 5. strapdown mechanization, covariance prediction every covariance_decimation
-        # samples, and 6. pseudo-measurements and the filter-health check at the first
-        # propagation epoch after they are due (an update never forces an extra propagation)
+        # 5. strapdown step, covariance prediction every covariance_decimation samples, and
+        # 6. at the first prediction epoch after they are due: pseudo-measurements, health
         if self.filter.mechanize(f_l, w_l, dt):
             self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
-            if sample.stamp_ns >= self._next_update_ns:
-                self._pseudo_measurements(sample.stamp_ns)
+            if self.updater.due(sample.stamp_ns):
+                for correction in self.updater.pseudo_measurements(
+                        self.filter, self.stationary, sample.stamp_ns, self.imu_rate.dt_s):
+                    self.history.apply(correction, aid=False)
                 self._check_filter_health(sample.stamp_ns)
                 if not self.aligned:
                     return []
@@ -185,23 +145,15 @@ class SlipEstimator:
 
     def add_wheel(self, sample: WheelSample) -> list[SlipEstimate]:
         """Process one wheel sample; return slip estimates that became due."""
-        # 1. check the sample
-        speeds = wheel_speeds(sample)
-        last_ns = self.supervisor.last_wheel_ns
-        if (not all(math.isfinite(v) and abs(v) <= self.params.max_wheel_speed_mps
-                    for v in speeds)
-                or (last_ns is not None and sample.stamp_ns <= last_ns)):
-            self.counters['wheel_rejected'] += 1
+        # 1. check the sample (the supervisor notes its arrival)
+        if not self.supervisor.accept_wheel(sample):
             return []
-        self.counters['wheel_samples'] += 1
-        # 2. the supervisor and the detectors see every sample
-        self.supervisor.wheel_arrived(sample.stamp_ns)
-        self.stationary.add_wheel(sample.stamp_ns, max(abs(v) for v in speeds))
+        # 2. the detectors see every sample
+        self.stationary.add_wheel(sample.stamp_ns, max(abs(v) for v in wheel_speeds(sample)))
         if sample.rim_speed_left_mps is not None and sample.rim_speed_right_mps is not None:
             self.timing.add_wheel(sample.stamp_ns,
                                   sample.rim_speed_right_mps - sample.rim_speed_left_mps)
-        # 3. wait until the INS has reached the sample's time (keep the newest when the wheel
-        # stamps run far ahead of the IMU: clock offset or IMU dropout)
+        # 3. wait for the INS to reach its time (the newest 50 if the stamps run far ahead)
         self._waiting_wheels.append(sample)
         if not self.aligned:
             self.alignment.add_wheel(sample.stamp_ns, sample.rim_speed_mps)
@@ -215,33 +167,26 @@ class SlipEstimator:
 
     # ------------------------------------------------------------------ alignment, health
     def _align(self, start: AlignmentStart, stamp_ns: int) -> None:
-        """Start the filter; in motion, slip is unknown for ``recovery_s`` while the wheels
-        re-anchor the velocity (zero slip assumed)."""
-        p = self.params
-        st, P = filter_start(start, p, self.planet, self.l_bw_b)
+        """Start the filter (in motion: slip unknown while the wheels re-anchor the speed)."""
+        st, P = filter_start(start, self.params, self.planet, self.l_bw_b)
         self.filter.start(st, P, float(np.linalg.norm(start.f_b)))
         self.odom_frame = LocalEnu(self.planet, outputs.base_llh(st, self.l_bw_b, self.planet))
-        self._next_update_ns = self._aligned_ns = stamp_ns
+        self.updater.schedule(stamp_ns)
+        self._aligned_ns = stamp_ns
         if start.speed_mps is not None:
             self.slip_model.reset(from_rest=False)
-            self.supervisor.start_recovery(stamp_ns)
-            self.supervisor.event(self.stamp_ns, (
-                f'aligned in motion (no stationary window in {p.motion_alignment_after_s:.1f} '
-                f's): slip unknown for {p.recovery_s:.0f} s'))
+            self.supervisor.aligned_in_motion(stamp_ns)
 
     def _recover(self, stamp_ns: int, gap_s: float, reason: str) -> None:
-        """Re-initialise velocity and inflate the covariance after an IMU gap or a divergence.
-
-        Attitude and position are kept (a rover does not teleport, but it may have moved for
-        ``gap_s``); velocity restarts from the last wheel speed; slip is "unknown" until
-        ``recovery_s`` has passed and the wheel aid has re-anchored the velocity."""
+        """After an IMU gap or a divergence: attitude and position kept, velocity from the last
+        rim speed, covariance widened; slip unknown for ``recovery_s``."""
         self.supervisor.start_recovery(stamp_ns, reason)
         rim = self._waiting_wheels[-1].rim_speed_mps if self._waiting_wheels else 0.0
         self.filter.restart_velocity(rim, lambda st: recovery_covariance(
             self.params, self.planet, st, gap_s))
         self.history.clear()
         self.slip_model.reset(from_rest=False)  # the velocity now comes from the rim
-        self._next_update_ns = stamp_ns
+        self.updater.schedule(stamp_ns)
 
     def _check_filter_health(self, stamp_ns: int) -> None:
         """Carry out the supervisor's verdict on the filter (reset, repair, recover)."""
@@ -255,41 +200,6 @@ class SlipEstimator:
             if verdict.b_a is not None:
                 self.filter.state.b_a, self.filter.state.b_g = verdict.b_a, verdict.b_g
             self._recover(stamp_ns, 0.0, verdict.recover_reason)
-
-    # ------------------------------------------------------------------ filter updates
-    def covariance(self) -> np.ndarray:
-        """Error-state covariance at the time of the last IMU sample (flushes the decimated
-        propagation)."""
-        if self.aligned:
-            self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
-        return self.filter.P
-
-    def _pseudo_measurements(self, stamp_ns: int) -> None:
-        """The detectors decide, then ZUPT + ZARU (at rest) or the NHC, one after the other."""
-        flt = self.filter
-        flt.last_records = []
-        self._next_update_ns = stamp_ns + int(_NS / self.params.update_rate_hz)
-        w_mean, n = flt.take_mean_rate()
-        self.is_stationary = self.stationary.is_stationary(stamp_ns)
-        self.is_turning = self.turn.is_turning(w_mean - flt.state.b_g, flt.state.C_b_n)
-        for c in self.constraints.select(flt.state, w_mean, max(1, n) * self.imu_rate.dt_s,
-                                         self.is_stationary, self.is_turning):
-            self._update(c.name, c.innovation, c.H, c.R, c.channels)
-
-    def _update(self, name: str, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
-                channels: tuple[str, ...] | None = None, excluded: bool = False) -> None:
-        """One gated update (``excluded``: a wheel-aid correction, kept out of the slip
-        model's free speed); counted and fed to the residual monitor."""
-        outcome = self.filter.update(name, innovation, H, R)
-        rec = outcome.record
-        self.counters['gated'] += outcome.gated
-        if math.isfinite(rec.nis):
-            for i, channel in enumerate(channels or (name,)):
-                k = slice(None) if channels is None else slice(i, i + 1)
-                self.monitor.add(channel, innovation[k], rec.S[k, k])
-        if outcome.correction is not None:
-            self.counters[name] += 1
-            self.history.apply(outcome.correction, aid=excluded)
 
     # ------------------------------------------------------------------ wheel samples
     def _evaluate_reached_wheels(self) -> list[SlipEstimate]:
@@ -317,14 +227,14 @@ class SlipEstimator:
             self.track.add(-at.yaw_rate_b_rps,
                            wheel.rim_speed_right_mps - wheel.rim_speed_left_mps)
         if self.supervisor.recovering(wheel.stamp_ns):
-            self._apply_aid(self.wheel_aid.reanchor(wheel.rim_speed_mps, self.is_turning), at)
+            self._apply_aid(self.wheel_aid.reanchor(wheel.rim_speed_mps, self.updater.is_turning), at)
             return self._unknown(wheel.stamp_ns, wheel.rim_speed_mps)
         self.counters['slip_estimates'] += 1
         st = self.filter.state
         est = outputs.slip_estimate(wheel, at.v_fwd_mps, at.yaw_rate_b_rps,
                                     self.filter.variance(self.forward.jacobian(st)),
-                                    self.params, self.is_stationary, self.track.width_m)
-        self._apply_aid(self.wheel_aid.decide(wheel, at, est, st.C_b_n, self.is_turning), at)
+                                    self.params, self.updater.is_stationary, self.track.width_m)
+        self._apply_aid(self.wheel_aid.decide(wheel, at, est, st.C_b_n, self.updater.is_turning), at)
         return est
 
     def _apply_aid(self, d: AidDecision | None, at: HistoryPoint) -> None:
@@ -346,13 +256,15 @@ class SlipEstimator:
                     excluded: bool = True) -> None:
         """Gated forward-speed update towards the aid value ``z_mps`` (``v_hist``: the INS
         value at the wheel sample's instant). The validation study overrides it."""
-        self._update('wheel', self.forward.innovation(z_mps, v_hist),
-                     self.forward.jacobian(self.filter.state), self.forward.covariance(var),
-                     excluded=excluded)
+        correction = self.updater.update(
+            self.filter, 'wheel', self.forward.innovation(z_mps, v_hist),
+            self.forward.jacobian(self.filter.state), self.forward.covariance(var))
+        if correction is not None:
+            self.history.apply(correction, aid=excluded)
 
-    def _unknown(self, stamp_ns: int, wheel_speed: float = 0.0) -> SlipEstimate:
+    def _unknown(self, stamp_ns: int, wheel_speed_mps: float = 0.0) -> SlipEstimate:
         self.counters['slip_unknown'] += 1
-        return outputs.unknown_slip(stamp_ns, wheel_speed)
+        return outputs.unknown_slip(stamp_ns, wheel_speed_mps)
 
     def _slip_before_alignment(self) -> list[SlipEstimate]:
         out = []
@@ -364,9 +276,14 @@ class SlipEstimator:
         return out
 
     # ------------------------------------------------------------------ outputs
+    def covariance(self) -> np.ndarray:
+        """Error-state covariance at the last IMU sample (flushes the decimated prediction)."""
+        if self.aligned:
+            self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
+        return self.filter.P
+
     def odometry(self) -> OdometryEstimate | None:
-        """Current fused solution of base_link in odom, or None before alignment (without a
-        usable IMU: the wheels' dead reckoning)."""
+        """Fused base_link in odom; before alignment None (no usable IMU: wheels only)."""
         if not self.aligned:
             return (self._wheel_odo.estimate(self.stamp_ns)
                     if self.imu_problem is not None and self.stamp_ns is not None else None)
@@ -377,5 +294,5 @@ class SlipEstimator:
     def health(self) -> Health:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""
         return self.supervisor.health(self.stamp_ns, self.filter,
-                                      (self.is_stationary, self.is_turning), self.monitor,
+                                      (self.updater.is_stationary, self.updater.is_turning), self.monitor,
                                       self.timing, self.track.width_m, self.imu_problem)

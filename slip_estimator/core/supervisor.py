@@ -21,7 +21,7 @@ from slip_estimator.core.filter import ErrorStateFilter
 from slip_estimator.core.params import Params
 from slip_estimator.core.state import VEL, NavState
 from slip_estimator.core.timing import WheelTimingMonitor
-from slip_estimator.core.types import Health
+from slip_estimator.core.types import Health, WheelSample, imu_values_usable, wheel_speeds
 
 _NS = 1_000_000_000
 _EVENTS_HELD = 20
@@ -110,6 +110,13 @@ class Supervisor:
         self.events.append((stamp_ns, text))
 
     # ------------------------------------------------------------------ IMU
+    def accept_imu(self, stamp_ns: int, last_ns: int | None, f_b: list[float],
+                   w_b: list[float]) -> bool:
+        """A usable IMU sample (counted either way): finite, plausible, after ``last_ns``."""
+        ok = imu_values_usable(f_b, w_b) and (last_ns is None or stamp_ns > last_ns)
+        self.counters['imu_samples' if ok else 'imu_rejected'] += 1
+        return ok
+
     def imu_step(self, stamp_ns: int, dt_s: float, f_b: list[float], w_b: list[float],
                  aligned: bool) -> GapAction:
         """Clipping (counted, named) and the action an IMU step of ``dt_s`` calls for."""
@@ -143,6 +150,13 @@ class Supervisor:
         return verdict
 
     # ------------------------------------------------------------------ recovery
+    def aligned_in_motion(self, stamp_ns: int) -> None:
+        """An in-motion start: slip unknown for ``recovery_s`` (named)."""
+        p = self.params
+        self.start_recovery(stamp_ns)
+        self.event(stamp_ns, f'aligned in motion (no stationary window in '
+                   f'{p.motion_alignment_after_s:.1f} s): slip unknown for {p.recovery_s:.0f} s')
+
     def start_recovery(self, stamp_ns: int, reason: str | None = None) -> None:
         """Slip is unknown for ``recovery_s`` from ``stamp_ns``; a ``reason`` (IMU gap,
         divergence) counts as a recovery and is named."""
@@ -162,13 +176,18 @@ class Supervisor:
         return True
 
     # ------------------------------------------------------------------ wheels
-    @property
-    def last_wheel_ns(self) -> int | None:
-        return self._last_wheel_ns
-
-    def wheel_arrived(self, stamp_ns: int) -> None:
-        self._last_wheel_ns = stamp_ns
-        self._last_stale_ns = None
+    def accept_wheel(self, sample: WheelSample) -> bool:
+        """A usable wheel sample (counted either way): finite rim speeds within
+        ``max_wheel_speed_mps``, stamped after the previous one; its arrival is noted."""
+        last_ns = self._last_wheel_ns
+        ok = (all(math.isfinite(v) and abs(v) <= self.params.max_wheel_speed_mps
+                  for v in wheel_speeds(sample))
+              and (last_ns is None or sample.stamp_ns > last_ns))
+        self.counters['wheel_samples' if ok else 'wheel_rejected'] += 1
+        if ok:
+            self._last_wheel_ns = sample.stamp_ns
+            self._last_stale_ns = None
+        return ok
 
     def wheels_stale(self, stamp_ns: int, aligned_ns: int | None) -> bool:
         """Wheel dropout, or no wheel data at all: True (and named) once per timeout, when slip
