@@ -218,15 +218,29 @@ def test_recovery_window_and_wheel_timeout():
     assert sup.recovering(end - 1) and not sup.recovering(end)
     assert sup.counters['recoveries'] == 1
     timeout = int(p.wheel_timeout_s * 1e9)
-    assert not sup.wheels_stale(timeout, 0)
-    assert sup.wheels_stale(timeout + 1, 0)  # no wheel data at all
-    assert not sup.wheels_stale(timeout + 2, 0)  # once per timeout
-    assert sup.accept_wheel(WheelSample(timeout + 3, 0.5))
-    assert not sup.accept_wheel(WheelSample(timeout + 3, 0.5))  # not after the previous
-    assert not sup.accept_wheel(WheelSample(timeout + 4, math.inf))
-    assert not sup.wheels_stale(2 * timeout + 3, 0)
-    assert sup.wheels_stale(2 * timeout + 4, 0)
+    assert sup.wheels_stale(timeout, 0) is None
+    assert sup.wheels_stale(timeout + 1, 0) == timeout + 1  # no wheel data at all
+    assert sup.wheels_stale(timeout + 2, 0) is None  # once per timeout
+    assert sup.accept_wheel(WheelSample(timeout + 3, 0.5), timeout + 2)
+    assert not sup.accept_wheel(WheelSample(timeout + 3, 0.5), timeout + 3)  # not after it
+    assert not sup.accept_wheel(WheelSample(timeout + 4, math.inf), timeout + 4)
+    assert sup.wheels_stale(2 * timeout + 3, 0) is None
+    assert sup.wheels_stale(2 * timeout + 4, 0) == 2 * timeout + 4
     assert sup.counters['wheel_samples'] == 1 and sup.counters['wheel_rejected'] == 2
+
+
+def test_wheel_timeout_is_judged_on_arrivals_and_reported_in_the_wheel_clock():
+    """Wheel stamps 0.7 s behind the IMU (timeout 0.5 s) arriving every 20 ms: no dropout.
+    When they stop, "unknown" once per timeout, stamped in the wheel clock."""
+    sup = Supervisor(Params(wheel_timeout_s=0.5))
+    lag, step = 700_000_000, 20_000_000
+    for k in range(100):
+        imu_now = 1_000_000_000 + k * step
+        assert sup.accept_wheel(WheelSample(imu_now - lag, 0.5), imu_now)
+        assert sup.wheels_stale(imu_now + step // 2, 0) is None
+    assert sup.wheel_arrival_ns == imu_now
+    stale = sup.wheels_stale(imu_now + 600_000_000, 0)
+    assert stale == imu_now - lag + 600_000_000
 
 
 # ---------------------------------------------------------------------------- wheel aid, outputs

@@ -146,10 +146,11 @@ class SlipEstimator:
     def add_wheel(self, sample: WheelSample) -> list[SlipEstimate]:
         """Process one wheel sample; return slip estimates that became due."""
         # 1. check the sample (the supervisor notes its arrival)
-        if not self.supervisor.accept_wheel(sample):
+        if not self.supervisor.accept_wheel(sample, self.stamp_ns):
             return []
-        # 2. the detectors see every sample
-        self.stationary.add_wheel(sample.stamp_ns, max(abs(v) for v in wheel_speeds(sample)))
+        # 2. the detectors see every sample (when it arrived: wheels may lag the IMU)
+        self.stationary.add_wheel(self.supervisor.wheel_arrival_ns,
+                                  max(abs(v) for v in wheel_speeds(sample)))
         if sample.rim_speed_left_mps is not None and sample.rim_speed_right_mps is not None:
             self.timing.add_wheel(sample.stamp_ns,
                                   sample.rim_speed_right_mps - sample.rim_speed_left_mps)
@@ -211,8 +212,9 @@ class SlipEstimator:
             est = self._evaluate_wheel(waiting.popleft())
             if est is not None:
                 out.append(est)
-        if self.supervisor.wheels_stale(self.stamp_ns, self._aligned_ns):
-            out.append(self._unknown(self.stamp_ns))
+        stale_ns = self.supervisor.wheels_stale(self.stamp_ns, self._aligned_ns)
+        if stale_ns is not None:
+            out.append(self._unknown(stale_ns))
         return out
 
     def _evaluate_wheel(self, wheel: WheelSample) -> SlipEstimate | None:

@@ -103,7 +103,8 @@ class Supervisor:
 
     def reset(self) -> None:
         self.recovering_until_ns: int | None = None
-        self._last_wheel_ns: int | None = None
+        self._last_wheel_ns: int | None = None  # stamp of the last wheel sample
+        self.wheel_arrival_ns: int | None = None  # when it arrived, in IMU time
         self._last_stale_ns: int | None = None
 
     def event(self, stamp_ns: int | None, text: str) -> None:
@@ -176,9 +177,11 @@ class Supervisor:
         return True
 
     # ------------------------------------------------------------------ wheels
-    def accept_wheel(self, sample: WheelSample) -> bool:
+    def accept_wheel(self, sample: WheelSample, imu_now_ns: int | None) -> bool:
         """A usable wheel sample (counted either way): finite rim speeds within
-        ``max_wheel_speed_mps``, stamped after the previous one; its arrival is noted."""
+        ``max_wheel_speed_mps``, stamped after the previous one. Its arrival is noted in IMU
+        time (``imu_now_ns``, the last IMU stamp; the wheel stamp itself when that is not
+        later): wheel stamps that lag the IMU by a constant latency still arrive on time."""
         last_ns = self._last_wheel_ns
         ok = (all(math.isfinite(v) and abs(v) <= self.params.max_wheel_speed_mps
                   for v in wheel_speeds(sample))
@@ -186,24 +189,32 @@ class Supervisor:
         self.counters['wheel_samples' if ok else 'wheel_rejected'] += 1
         if ok:
             self._last_wheel_ns = sample.stamp_ns
+            self.wheel_arrival_ns = (sample.stamp_ns if imu_now_ns is None
+                                     else max(sample.stamp_ns, imu_now_ns))
             self._last_stale_ns = None
         return ok
 
-    def wheels_stale(self, stamp_ns: int, aligned_ns: int | None) -> bool:
-        """Wheel dropout, or no wheel data at all: True (and named) once per timeout, when slip
-        is to be reported unknown instead of guessed."""
-        last = self._last_stale_ns if self._last_stale_ns is not None else self._last_wheel_ns
+    def wheels_stale(self, stamp_ns: int, aligned_ns: int | None) -> int | None:
+        """Wheel dropout, or no wheel data at all, at IMU time ``stamp_ns``: once per timeout
+        (named), the stamp of an "unknown" slip report, else None.
+
+        A dropout is judged on the wheel stream's own arrivals (no wheel sample for
+        ``wheel_timeout_s`` of IMU time), not on its stamps: wheels stamped behind the IMU
+        by more than the timeout still flow. The report is stamped in the wheel clock (the
+        last wheel stamp plus the time since it arrived), so slip times never go back."""
+        arrival = self.wheel_arrival_ns
+        last = self._last_stale_ns if self._last_stale_ns is not None else arrival
         if last is None:
             last = aligned_ns
         if last is None or stamp_ns - last <= self._wheel_timeout_ns:
-            return False
+            return None
         self._last_stale_ns = stamp_ns
         if self._last_wheel_ns is None:
             self.event(stamp_ns, 'no wheel data: slip unknown, INS with ZUPT/ZARU only')
-        else:
-            self.event(stamp_ns, f'wheel data missing for '
-                       f'{(stamp_ns - self._last_wheel_ns) * 1e-9:.1f} s: slip unknown')
-        return True
+            return stamp_ns
+        self.event(stamp_ns, f'wheel data missing for {(stamp_ns - arrival) * 1e-9:.1f} s: '
+                   'slip unknown')
+        return self._last_wheel_ns + (stamp_ns - arrival)
 
     # ------------------------------------------------------------------ report
     def health(self, stamp_ns: int | None, flt: ErrorStateFilter,
