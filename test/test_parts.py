@@ -284,3 +284,27 @@ def test_removed_parameters_are_ignored_unknown_ones_refused():
     with pytest.raises(ParameterError, match='unknown parameter'):
         Params.from_dict({'max_wheel_latency': 0.5})
     assert BG.start == 12 and POS.start == 6  # the layout these tests index by hand
+
+
+def test_relevel_after_a_recovery_takes_the_tilt_from_the_specific_force():
+    """A state whose attitude was kept across a long gap (level, heading 1 rad) while the
+    rover now climbs at 10 deg: re-levelled to 10 deg pitch, heading and position kept,
+    velocity from the rim speed; position variance not shrunk."""
+    from slip_estimator.core.alignment import AlignmentStart, relevel
+    from slip_estimator.core.frames import dcm_to_rpy
+
+    p = Params()
+    st = level_state(heading_rad=1.0)
+    pitch = math.radians(10.0)
+    f_b = np.array([9.8 * math.sin(pitch), 0.0, -9.8 * math.cos(pitch)])  # FRD, nose up
+    P = P0.copy()
+    P[POS, POS] *= 100.0
+    P_new = relevel(st, P, AlignmentStart(f_b, None, 0.4), p, EARTH)
+    roll, pitch_est, yaw = dcm_to_rpy(st.C_b_n)
+    assert pitch_est == pytest.approx(pitch, abs=1e-9) and roll == pytest.approx(0.0, abs=1e-9)
+    assert yaw == pytest.approx(1.0)
+    assert np.allclose(st.v_eb_n, st.C_b_n[:, 0] * 0.4)
+    assert np.array_equal(st.llh, LLH)
+    assert np.all(np.diag(P_new)[POS] >= np.diag(P)[POS])
+    assert np.allclose(P_new, P_new.T, rtol=0, atol=1e-18)
+    assert np.linalg.eigvalsh(P_new).min() > -1e-12  # PSD to round-off (max variance 1)

@@ -157,6 +157,24 @@ class AlignmentCollector:
         self._rows: list[np.ndarray] = []
         self.motion = MotionStart()
         self.imu_problem: str | None = None
+        self.releveling = False
+
+    def start_relevel(self) -> None:
+        """After a recovery: collect a fresh window for :meth:`relevel` (the attitude the INS
+        kept across a long IMU gap may be tilted by the terrain it drove over since)."""
+        if not self.releveling:
+            self.motion, self.releveling = MotionStart(), True
+
+    def relevel(self, f_b: np.ndarray, w_b: np.ndarray, stamp_ns: int) -> AlignmentStart | None:
+        """One IMU sample while re-levelling; the in-motion levelling once the window is full
+        (wheel samples go to :meth:`add_wheel`)."""
+        motion = self.motion
+        motion.add_imu(stamp_ns, f_b, w_b)
+        if not motion.ready(stamp_ns):
+            return None
+        self.releveling = False
+        speed, _ = motion.speed_and_accel()
+        return AlignmentStart(motion.specific_force(), None, speed)
 
     def add_wheel(self, stamp_ns: int, rim_speed_mps: float) -> None:
         self.motion.add_wheel(stamp_ns, rim_speed_mps)
@@ -232,6 +250,22 @@ def in_motion_covariance(P: np.ndarray, speed_mps: float, attitude_std_rad: floa
     P[0, 0] += tilt_var - d[0]
     P[1, 1] += tilt_var - d[1]
     P[VEL, VEL] = (0.1 + 0.2 * abs(speed_mps)) ** 2
+
+
+def relevel(state: NavState, P: np.ndarray, start: AlignmentStart, p: Params,
+            planet: Planet) -> np.ndarray:
+    """Re-level ``state`` in place on ``start`` (in motion: roll and pitch from the specific
+    force less the wheel-derived acceleration, heading and position kept, velocity from the
+    rim speed) and return its covariance: the in-motion prior, with the position and heading
+    variances of ``P`` where larger."""
+    roll, pitch = level(start.f_b)
+    state.C_b_n = frames.rpy_to_dcm(roll, pitch, float(frames.dcm_to_rpy(state.C_b_n)[2]))
+    state.v_eb_n = state.C_b_n[:, 0] * start.speed_mps
+    P_new = initial_covariance(p, planet, state, start.f_b)
+    in_motion_covariance(P_new, start.speed_mps, p.initial_attitude_std)
+    P_new[POS, POS] = np.maximum(P_new[POS, POS], P[POS, POS])
+    P_new[2, 2] = max(P_new[2, 2], P[2, 2])
+    return P_new
 
 
 def recovery_covariance(p: Params, planet: Planet, state: NavState, gap_s: float) -> np.ndarray:

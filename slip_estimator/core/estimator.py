@@ -11,17 +11,16 @@ queues it, and the call that brings the INS past its stamp evaluates it
 from __future__ import annotations
 
 import math
-from collections import deque
 
 import numpy as np
 
 from slip_estimator.core import frames, outputs
 from slip_estimator.core.alignment import (AlignmentCollector, AlignmentStart, filter_start,
-                                           recovery_covariance)
+                                           recovery_covariance, relevel)
 from slip_estimator.core.detectors import ImuRate, StationaryDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
-from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint
+from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint, WheelQueue
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, LocalEnu
@@ -37,7 +36,6 @@ from slip_estimator.core.wheel_aid import WheelAid
 from slip_estimator.core.wheel_odometry import WheelDeadReckoning
 
 _NS = 1_000_000_000
-_MAX_WAITING_WHEELS = 50
 
 
 class SlipEstimator:
@@ -75,7 +73,7 @@ class SlipEstimator:
         self._wheel_odo = WheelDeadReckoning(math.radians(90.0 - p.initial_heading_deg))  # ENU
         self.omega_ib_b = np.zeros(3)  # the last gyro sample, rad/s
         self.history = ForwardSpeedHistory(self._l_bw_b)
-        self._waiting_wheels: deque[WheelSample] = deque()  # stamped ahead of the INS
+        self._waiting_wheels = WheelQueue()
         self.updater.reset()
         self.supervisor.reset()
         self.wheel_aid = WheelAid(p)
@@ -90,11 +88,6 @@ class SlipEstimator:
     def state(self) -> NavState | None:
         """The navigation state (None before alignment)."""
         return self.filter.state
-
-    @property
-    def imu_problem(self) -> str | None:
-        """Why the IMU was refused as non-REP-145 (None: not refused)."""
-        return self.alignment.imu_problem
 
     # ------------------------------------------------------------------ inputs
     def add_imu(self, sample: ImuSample) -> list[SlipEstimate]:
@@ -128,6 +121,10 @@ class SlipEstimator:
             if start is not None:
                 self._align(start, sample.stamp_ns)
             return self._slip_before_alignment()
+        if self.alignment.releveling:  # after a recovery
+            start = self.alignment.relevel(sample.f_ib_b, sample.omega_ib_b, sample.stamp_ns)
+            if start is not None:
+                self._relevel(start, sample.stamp_ns)
         # 5. strapdown step, covariance prediction every covariance_decimation samples, and
         # 6. at the first prediction epoch after they are due: pseudo-measurements, health
         if self.filter.mechanize(f_l, w_l, dt):
@@ -154,15 +151,14 @@ class SlipEstimator:
         if sample.rim_speed_left_mps is not None and sample.rim_speed_right_mps is not None:
             self.timing.add_wheel(sample.stamp_ns,
                                   sample.rim_speed_right_mps - sample.rim_speed_left_mps)
-        # 3. wait for the INS to reach its time (the newest 50 if the stamps run far ahead)
-        self._waiting_wheels.append(sample)
-        if not self.aligned:
+        # 3. wait for the INS to reach its time
+        if self._waiting_wheels.push(sample):
+            self.counters['wheel_future'] += 1
+        if not self.aligned or self.alignment.releveling:
             self.alignment.add_wheel(sample.stamp_ns, sample.rim_speed_mps)
+        if not self.aligned:
             self._wheel_odo.add(sample, self.track.width_m)
             return self._slip_before_alignment()
-        if len(self._waiting_wheels) > _MAX_WAITING_WHEELS:
-            self._waiting_wheels.popleft()
-            self.counters['wheel_future'] += 1
         # 4. evaluate what the INS has reached
         return self._evaluate_reached_wheels()
 
@@ -179,15 +175,25 @@ class SlipEstimator:
             self.supervisor.aligned_in_motion(stamp_ns)
 
     def _recover(self, stamp_ns: int, gap_s: float, reason: str) -> None:
-        """After an IMU gap or a divergence: attitude and position kept, velocity from the last
-        rim speed, covariance widened; slip unknown for ``recovery_s``."""
+        """After an IMU gap or a divergence: velocity from the last rim speed, P widened, slip
+        unknown; a window later the attitude is re-levelled (:meth:`_relevel`)."""
         self.supervisor.start_recovery(stamp_ns, reason)
-        rim = self._waiting_wheels[-1].rim_speed_mps if self._waiting_wheels else 0.0
-        self.filter.restart_velocity(rim, lambda st: recovery_covariance(
-            self.params, self.planet, st, gap_s))
+        self.filter.restart_velocity(self._waiting_wheels.newest_rim_speed_mps(),
+                                     lambda st: recovery_covariance(self.params, self.planet,
+                                                                    st, gap_s))
         self.history.clear()
         self.slip_model.reset(from_rest=False)  # the velocity now comes from the rim
         self.updater.schedule(stamp_ns)
+        self.alignment.start_relevel()
+
+    def _relevel(self, start: AlignmentStart, stamp_ns: int) -> None:
+        """Attitude re-levelled, velocity from the rim; slip unknown for ``recovery_s``."""
+        flt = self.filter
+        flt.P = relevel(flt.state, flt.P, start, self.params, self.planet)
+        flt.clear_accumulators()
+        self.history.clear()
+        self.slip_model.reset(from_rest=False)
+        self.supervisor.start_recovery(stamp_ns)
 
     def _check_filter_health(self, stamp_ns: int) -> None:
         """Carry out the supervisor's verdict on the filter (reset, repair, recover)."""
@@ -204,23 +210,17 @@ class SlipEstimator:
 
     # ------------------------------------------------------------------ wheel samples
     def _evaluate_reached_wheels(self) -> list[SlipEstimate]:
-        """The slip of every waiting wheel sample the INS has reached (each then offered to the
-        wheel aid), and "unknown" once per wheel timeout when the wheel stream stopped."""
-        out: list[SlipEstimate] = []
-        waiting = self._waiting_wheels
-        while waiting and waiting[0].stamp_ns <= self.stamp_ns:
-            est = self._evaluate_wheel(waiting.popleft())
-            if est is not None:
-                out.append(est)
+        """The slip of every waiting wheel sample the INS has reached; "unknown" per timeout."""
+        reached = self._waiting_wheels.reached(self.stamp_ns)
+        out = [est for est in map(self._evaluate_wheel, reached) if est is not None]
         stale_ns = self.supervisor.wheels_stale(self.stamp_ns, self._aligned_ns)
         if stale_ns is not None:
             out.append(self._unknown(stale_ns))
         return out
 
     def _evaluate_wheel(self, wheel: WheelSample) -> SlipEstimate | None:
-        """1. the body motion the wheel speed belongs to (``wheel_latency_s`` before its
-        stamp), 2. the effective track width, 3. the slip (unknown while recovering, when the
-        rim speed re-anchors the velocity instead), 4. the wheel aid."""
+        """1. the body motion ``wheel_latency_s`` before its stamp, 2. the track width, 3. the
+        slip (unknown while recovering: the rim re-anchors the speed), 4. the wheel aid."""
         at = self.history.at(wheel.stamp_ns - self._wheel_latency_ns)
         if at is None:
             self.counters['wheel_late'] += 1
@@ -228,19 +228,20 @@ class SlipEstimator:
         if wheel.rim_speed_left_mps is not None and wheel.rim_speed_right_mps is not None:
             self.track.add(-at.yaw_rate_b_rps,
                            wheel.rim_speed_right_mps - wheel.rim_speed_left_mps)
+        turning = self.updater.is_turning
         if self.supervisor.recovering(wheel.stamp_ns):
-            self._apply_aid(self.wheel_aid.reanchor(wheel.rim_speed_mps, self.updater.is_turning), at)
+            self._apply_aid(self.wheel_aid.reanchor(wheel.rim_speed_mps, turning), at)
             return self._unknown(wheel.stamp_ns, wheel.rim_speed_mps)
         self.counters['slip_estimates'] += 1
         st = self.filter.state
         est = outputs.slip_estimate(wheel, at.v_fwd_mps, at.yaw_rate_b_rps,
                                     self.filter.variance(self.forward.jacobian(st)),
                                     self.params, self.updater.is_stationary, self.track.width_m)
-        self._apply_aid(self.wheel_aid.decide(wheel, at, est, st.C_b_n, self.updater.is_turning), at)
+        self._apply_aid(self.wheel_aid.decide(wheel, at, est, st.C_b_n, turning), at)
         return est
 
     def _apply_aid(self, d: AidDecision | None, at: HistoryPoint) -> None:
-        """Carry out a wheel-aid decision against the history point ``at`` of its instant."""
+        """Carry out a wheel-aid decision (``at``: the history at the wheel sample's time)."""
         if d is None:
             return
         if d.held_slip is not None:
@@ -269,12 +270,10 @@ class SlipEstimator:
         return outputs.unknown_slip(stamp_ns, wheel_speed_mps)
 
     def _slip_before_alignment(self) -> list[SlipEstimate]:
-        out = []
-        while self._waiting_wheels:
-            est = outputs.slip_before_alignment(self._waiting_wheels.popleft(), self.params,
-                                                self.stationary.imu_steady())
+        out = [outputs.slip_before_alignment(wheel, self.params, self.stationary.imu_steady())
+               for wheel in self._waiting_wheels.drain()]
+        for est in out:
             self.counters['slip_unknown' if est.slip_class < 0 else 'slip_estimates'] += 1
-            out.append(est)
         return out
 
     # ------------------------------------------------------------------ outputs
@@ -287,14 +286,14 @@ class SlipEstimator:
     def odometry(self) -> OdometryEstimate | None:
         """Fused base_link in odom; before alignment None (no usable IMU: wheels only)."""
         if not self.aligned:
-            return (self._wheel_odo.estimate(self.stamp_ns)
-                    if self.imu_problem is not None and self.stamp_ns is not None else None)
+            refused = self.alignment.imu_problem is not None and self.stamp_ns is not None
+            return self._wheel_odo.estimate(self.stamp_ns) if refused else None
         return outputs.odometry(self.stamp_ns, self.filter.state, self.filter.P,
                                 self.omega_ib_b, self._l_bw_b, self.planet, self.odom_frame,
                                 self.params.gyro_noise_density ** 2 / self.imu_rate.dt_s)
 
     def health(self) -> Health:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""
-        return self.supervisor.health(self.stamp_ns, self.filter,
-                                      (self.updater.is_stationary, self.updater.is_turning), self.monitor,
-                                      self.timing, self.track.width_m, self.imu_problem)
+        motion = (self.updater.is_stationary, self.updater.is_turning)
+        return self.supervisor.health(self.stamp_ns, self.filter, motion, self.monitor,
+                                      self.timing, self.track.width_m, self.alignment.imu_problem)

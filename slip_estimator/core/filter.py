@@ -51,7 +51,8 @@ def vibration_psd(S: tuple[float, float, float, float], fraction: float, window:
     Strapdown integration of it leaves errors (sampling, coning/sculling, g-sensitivity) that
     a fixed white-noise model ignores, and an over-confident filter then turns constraint
     residuals into wild attitude corrections. A fraction of the spread in the IMU ``window``
-    (the stationarity detector's) is therefore added as white noise: ``S = N^2 + k^2 (sigma^2 - N^2 / dt) dt`` (only the spread beyond the sensor noise,
+    (the stationarity detector's) is therefore added as white noise:
+    ``S = N^2 + k^2 (sigma^2 - N^2 / dt) dt`` (only the spread beyond the sensor noise,
     so a rover at rest keeps the plain noise model).
     """
     S_rg, S_ra, S_bad, S_bgd = S

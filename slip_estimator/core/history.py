@@ -1,4 +1,5 @@
-"""The filter's recent forward speed, for wheel samples that describe an earlier instant.
+"""The filter's recent forward speed, for wheel samples that describe an earlier instant, and
+the wheel samples waiting for the INS to reach their stamps (:class:`WheelQueue`).
 
 A wheel sample is evaluated against the body velocity ``wheel_latency_s`` before its stamp,
 which the INS passed a few samples ago. :class:`ForwardSpeedHistory` keeps, at the IMU rate
@@ -14,9 +15,11 @@ acceleration its tilt and accelerometer-bias change cause from then on) and take
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Iterator
 from typing import NamedTuple
 
 from slip_estimator.core.state import NavState
+from slip_estimator.core.types import WheelSample
 
 _NS = 1_000_000_000
 
@@ -113,3 +116,41 @@ class ForwardSpeedHistory:
         a = 0.0 if t1 == t0 else (stamp_ns - t0) / (t1 - t0)
         return HistoryPoint(v0 + a * (v1 - v0) + self._shift_mps, y0 + a * (y1 - y0),
                             f0 + a * (f1 - f0), a0 + a * (a1 - a0))
+
+
+class WheelQueue:
+    """Wheel samples waiting for the INS to reach their stamps, oldest first.
+
+    At most ``size`` wait: when the wheel stamps run far ahead of the IMU (clock offset, IMU
+    dropout) the newest are kept.
+    """
+
+    def __init__(self, size: int = 50) -> None:
+        self._size = size
+        self._waiting: deque[WheelSample] = deque()
+
+    def __len__(self) -> int:
+        return len(self._waiting)
+
+    def push(self, sample: WheelSample) -> bool:
+        """Queue a sample; True when the oldest had to be dropped for it."""
+        self._waiting.append(sample)
+        if len(self._waiting) <= self._size:
+            return False
+        self._waiting.popleft()
+        return True
+
+    def reached(self, stamp_ns: int) -> Iterator[WheelSample]:
+        """Take out, oldest first, the samples stamped at or before ``stamp_ns``."""
+        waiting = self._waiting
+        while waiting and waiting[0].stamp_ns <= stamp_ns:
+            yield waiting.popleft()
+
+    def drain(self) -> Iterator[WheelSample]:
+        """Take out every sample, oldest first."""
+        while self._waiting:
+            yield self._waiting.popleft()
+
+    def newest_rim_speed_mps(self) -> float:
+        """The rim speed of the newest waiting sample (0 when none waits), m/s."""
+        return self._waiting[-1].rim_speed_mps if self._waiting else 0.0

@@ -4,7 +4,8 @@
 wheel sample whether the rim speed aids the forward velocity as ``r w g(s_hold)``, re-anchors
 it after a slip change, or leaves the INS free while a new slip is measured. While the
 estimator recovers (after an in-motion start, an IMU gap or a divergence) the rim speed
-re-anchors the velocity with zero slip assumed. ``'off'``: never (the paper's method). The decisions are :class:`~slip_estimator.core.slip_model.AidDecision`
+re-anchors the velocity with zero slip assumed. ``'off'``: never (the paper's method). The
+decisions are :class:`~slip_estimator.core.slip_model.AidDecision`
 values for the filter's :class:`~slip_estimator.core.measurements.ForwardSpeed` model.
 """
 from __future__ import annotations
