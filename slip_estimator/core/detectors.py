@@ -232,16 +232,16 @@ class ImuRate:
     def __init__(self, learn_samples: int = 10, initial_dt_s: float = 1.0 / 250.0) -> None:
         self.dt_s = initial_dt_s
         self._learn_samples = learn_samples
-        self._first_dts: list[float] | None = []  # until the rate is known
+        self._first_dts_s: list[float] | None = []  # until the rate is known
 
     def add(self, dt_s: float) -> bool:
         """One regular interval (not a gap); True when the rate has just become known."""
-        if self._first_dts is None:
+        if self._first_dts_s is None:
             self.dt_s = 0.99 * self.dt_s + 0.01 * dt_s
             return False
-        self._first_dts.append(dt_s)
-        if len(self._first_dts) < self._learn_samples:
+        self._first_dts_s.append(dt_s)
+        if len(self._first_dts_s) < self._learn_samples:
             return False
-        self.dt_s = float(np.median(self._first_dts))
-        self._first_dts = None
+        self.dt_s = float(np.median(self._first_dts_s))
+        self._first_dts_s = None
         return True

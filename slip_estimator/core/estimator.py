@@ -104,14 +104,14 @@ class SlipEstimator:
         if prev_ns is None:
             return self._slip_before_alignment()
         # 3. the time step: clipping, gaps (a long one is not integrated across), the IMU rate
-        dt = (sample.stamp_ns - prev_ns) * 1e-9
-        gap = self.supervisor.imu_step(sample.stamp_ns, dt, f_l, w_l, self.aligned)
+        dt_s = (sample.stamp_ns - prev_ns) * 1e-9
+        gap = self.supervisor.imu_step(sample.stamp_ns, dt_s, f_l, w_l, self.aligned)
         if gap is not GapAction.NONE:
             self.slip_model.interrupt()  # no step test across a hole in the INS
             if gap is GapAction.RECOVER:
-                self._recover(sample.stamp_ns, dt, 'IMU gap')
+                self._recover(sample.stamp_ns, dt_s, 'IMU gap')
                 return self._evaluate_reached_wheels()
-        elif self.imu_rate.add(dt):
+        elif self.imu_rate.add(dt_s):
             self.stationary.fit_window(self.params.stationary_window_s, self.imu_rate.dt_s)
         # 4. alignment
         if not self.aligned:
@@ -127,7 +127,7 @@ class SlipEstimator:
                 self._relevel(start, sample.stamp_ns)
         # 5. strapdown step, covariance prediction every covariance_decimation samples, and
         # 6. at the first prediction epoch after they are due: pseudo-measurements, health
-        if self.filter.mechanize(f_l, w_l, dt):
+        if self.filter.mechanize(f_l, w_l, dt_s):
             self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
             if self.updater.due(sample.stamp_ns):
                 for correction in self.updater.pseudo_measurements(
@@ -137,7 +137,7 @@ class SlipEstimator:
                 if not self.aligned:
                     return []
         # 7. the forward-speed history, and 8. the wheel samples the INS has now reached
-        self.history.record(sample.stamp_ns, self.filter.state, w_l, dt)
+        self.history.record(sample.stamp_ns, self.filter.state, w_l, dt_s)
         return self._evaluate_reached_wheels()
 
     def add_wheel(self, sample: WheelSample) -> list[SlipEstimate]:
@@ -255,13 +255,13 @@ class SlipEstimator:
                                         self.forward.covariance(d.var_mps2))
         self.history.apply(correction, aid=not d.repair)
 
-    def _aid_update(self, z_mps: float, v_hist: float, var: float,
+    def _aid_update(self, z_mps: float, v_hist_mps: float, var_mps2: float,
                     excluded: bool = True) -> None:
-        """Gated forward-speed update towards the aid value ``z_mps`` (``v_hist``: the INS
+        """Gated forward-speed update towards the aid value ``z_mps`` (``v_hist_mps``: the INS
         value at the wheel sample's instant). The validation study overrides it."""
         correction = self.updater.update(
-            self.filter, 'wheel', self.forward.innovation(z_mps, v_hist),
-            self.forward.jacobian(self.filter.state), self.forward.covariance(var))
+            self.filter, 'wheel', self.forward.innovation(z_mps, v_hist_mps),
+            self.forward.jacobian(self.filter.state), self.forward.covariance(var_mps2))
         if correction is not None:
             self.history.apply(correction, aid=excluded)
 

@@ -73,7 +73,7 @@ class ErrorStateFilter:
         self.planet = planet
         self._decimation = params.covariance_decimation
         self._vibration_fraction = params.vibration_noise_fraction
-        self._S = (params.gyro_noise_density ** 2, params.accel_noise_density ** 2,
+        self._noise_psd = (params.gyro_noise_density ** 2, params.accel_noise_density ** 2,
                    params.accel_bias_psd, params.gyro_bias_psd)
         self._gate = {k: kalman.chi2_threshold(k, params.innovation_gate_probability)
                       for k in (1, 2, 3)}
@@ -85,7 +85,7 @@ class ErrorStateFilter:
         self.last_records: list[kalman.UpdateRecord] = []
         self.clear_accumulators()
         # Gyro rate summed since the last update epoch (the pseudo-measurements' mean rate).
-        self._rate_sum = [0.0, 0.0, 0.0]
+        self._rate_sum_rps = [0.0, 0.0, 0.0]
         self._rate_n = 0
 
     def start(self, state: NavState, P: np.ndarray, g_mps2: float) -> None:
@@ -107,21 +107,21 @@ class ErrorStateFilter:
         """Drop the interval integrated since the last covariance propagation."""
         # Per-sample accumulators as lists of floats (numpy costs ~1 us per 3-vector
         # operation; the element-wise float sums are the same).
-        self._acc_tau = 0.0
-        self._acc_f_n = [0.0, 0.0, 0.0]  # sum of f_ib_n * dt since the last propagation
+        self._acc_tau_s = 0.0
+        self._acc_dv_n_mps = [0.0, 0.0, 0.0]  # sum of f_ib_n * dt since the last propagation
         self._acc_n = 0
 
     # ------------------------------------------------------------------ predict
     def mechanize(self, f_b: list[float], w_b: list[float], dt_s: float) -> bool:
         """One strapdown step; True when the covariance propagation is due."""
         fN, fE, fD = mechanize_step(self.state, f_b, w_b, dt_s, self.planet)
-        self._acc_tau += dt_s
-        acc = self._acc_f_n
+        self._acc_tau_s += dt_s
+        acc = self._acc_dv_n_mps
         acc[0] += fN * dt_s
         acc[1] += fE * dt_s
         acc[2] += fD * dt_s
         self._acc_n += 1
-        acc = self._rate_sum
+        acc = self._rate_sum_rps
         acc[0] += w_b[0]
         acc[1] += w_b[1]
         acc[2] += w_b[2]
@@ -134,15 +134,15 @@ class ErrorStateFilter:
         ``dt_s``)."""
         if self._acc_n == 0:
             return
-        tau = self._acc_tau
-        a_N, a_E, a_D = self._acc_f_n
+        tau = self._acc_tau_s
+        a_N, a_E, a_D = self._acc_dv_n_mps
         F = system_matrix(self.state, (a_N / tau, a_E / tau, a_D / tau), self.planet)
         Ft = F * tau
         Phi = Ft + _EYE_15  # Phi = I + F tau + (F tau)^2 / 2
         Ft2 = Ft @ Ft
         Ft2 *= 0.5
         Phi += Ft2
-        S = vibration_psd(self._S, self._vibration_fraction, window, dt_s)
+        S = vibration_psd(self._noise_psd, self._vibration_fraction, window, dt_s)
         Q = process_noise(self.state, F, tau, *S, self.planet)
         self.P = kalman.predict(self.P, Phi, Q)
         self.state.C_b_n = frames.orthonormalize(self.state.C_b_n)
@@ -151,8 +151,8 @@ class ErrorStateFilter:
     def take_mean_rate(self) -> tuple[np.ndarray, int]:
         """Mean gyro rate (rad/s) since the last call and the number of samples in it."""
         n = self._rate_n
-        w_mean = np.array(self._rate_sum) / max(1, n)
-        self._rate_sum = [0.0, 0.0, 0.0]
+        w_mean = np.array(self._rate_sum_rps) / max(1, n)
+        self._rate_sum_rps = [0.0, 0.0, 0.0]
         self._rate_n = 0
         return w_mean, n
 
