@@ -110,6 +110,7 @@ class SlipEstimator:
             self.slip_model.interrupt()  # no step test across a hole in the INS
             if gap is GapAction.RECOVER:
                 self._recover(sample.stamp_ns, dt_s, 'IMU gap')
+                self.alignment.start_relevel()  # the tilt kept across it may be far off
                 return self._evaluate_reached_wheels()
         elif self.imu_rate.add(dt_s):
             self.stationary.fit_window(self.params.stationary_window_s, self.imu_rate.dt_s)
@@ -176,7 +177,7 @@ class SlipEstimator:
 
     def _recover(self, stamp_ns: int, gap_s: float, reason: str) -> None:
         """After an IMU gap or a divergence: velocity from the last rim speed, P widened, slip
-        unknown; a window later the attitude is re-levelled (:meth:`_relevel`)."""
+        unknown (after a gap, a window later, the attitude is re-levelled: :meth:`_relevel`)."""
         self.supervisor.start_recovery(stamp_ns, reason)
         self.filter.restart_velocity(self._waiting_wheels.newest_rim_speed_mps(),
                                      lambda st: recovery_covariance(self.params, self.planet,
@@ -184,7 +185,6 @@ class SlipEstimator:
         self.history.clear()
         self.slip_model.reset(from_rest=False)  # the velocity now comes from the rim
         self.updater.schedule(stamp_ns)
-        self.alignment.start_relevel()
 
     def _relevel(self, start: AlignmentStart, stamp_ns: int) -> None:
         """Attitude re-levelled, velocity from the rim; slip unknown for ``recovery_s``."""
