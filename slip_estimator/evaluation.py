@@ -51,11 +51,6 @@ slip_ratio = slip_ratio_array
 slip_class = slip_class_array
 
 
-def is_moving(v_body_mps: np.ndarray, v_rim_mps: np.ndarray, threshold_mps: float) -> np.ndarray:
-    """The rover counts as moving when body or rim speed exceeds the threshold."""
-    return (np.abs(v_body_mps) > threshold_mps) | (np.abs(v_rim_mps) > threshold_mps)
-
-
 # --------------------------------------------------------------------------------------------
 # Result records
 # --------------------------------------------------------------------------------------------
@@ -448,15 +443,6 @@ def gnss_slip_truth(wheel_stamp_ns: np.ndarray, v_rim_mps: np.ndarray, gnss_t_s:
     cls = np.where(np.isnan(v_fwd), -1, slip_class(s, moving))
     return GnssTruth(np.asarray(wheel_stamp_ns, dtype=np.int64), v_fwd, v_rim, s, cls,
                      projection)
-
-
-def rim_speed_from_joints(names: list[str], rates_rps: np.ndarray, joint_names: list[str],
-                          wheel_radius_m: float) -> np.ndarray:
-    """Mean rim speed of the named wheels, m/s, from joint rates (rows = samples)."""
-    cols = [names.index(n) for n in joint_names if n in names]
-    if not cols:
-        raise ValueError(f'none of {joint_names} in joint states {names}')
-    return wheel_radius_m * np.asarray(rates_rps, dtype=float)[:, cols].mean(axis=1)
 
 
 # --------------------------------------------------------------------------------------------

@@ -25,7 +25,7 @@ Time bases
       speed)/dt gives -0.13 s / -0.20 s; GNSS speed vs wheel speed (test17run, RTK) gives
       wheel stamp = GNSS time + 0.18 s. IMU and GNSS agree with each other; the joint states are
       about 0.1-0.2 s late. Timestamps are written as recorded; the estimator should allow for
-      this latency (``max_wheel_latency_s``) and may want a wheel time offset.
+      this latency (``wheel_latency_s``) and may want a wheel time offset.
 
 IMU axes and sign
     Raw axes are the sensor's x forward, y right, z down (FRD). At rest Az = -9.79 / -9.80 m/s^2
