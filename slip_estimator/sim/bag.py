@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from slip_estimator.core.frames import rpy_to_dcm
+from slip_estimator.sim.robots import RobotProfile
 from slip_estimator.sim.rover import SimResult, simulate
 from slip_estimator.sim.scenario import (
     WHEEL_JOINT_NAMES,
@@ -54,15 +56,18 @@ def _yaw_quat_wxyz(yaw: float) -> tuple[float, float, float, float]:
     return math.cos(0.5 * yaw), 0.0, 0.0, math.sin(0.5 * yaw)
 
 
-def sim_params(result: SimResult) -> object:
-    """:class:`slip_estimator.core.params.Params` matching the simulated rover and IMU."""
+def sim_params(result: SimResult, wheel_input: str = 'joint_states',
+               joint_columns: tuple[int, ...] = (0, 1, 2, 3)) -> object:
+    """:class:`slip_estimator.core.params.Params` matching the simulated rover and IMU (the
+    declared parameters: the geometric track, not a skid-steer's effective one)."""
     from slip_estimator.core.params import Params
 
     cfg = result.config
     rover, site, imu = cfg.rover, cfg.site, cfg.imu
     return Params(
         wheel_radius=rover.wheel_radius_m, track_width=rover.track_width_m,
-        wheel_input='joint_states', wheel_joint_names=list(WHEEL_JOINT_NAMES),
+        wheel_input=wheel_input,
+        wheel_joint_names=[WHEEL_JOINT_NAMES[k] for k in joint_columns],
         imu_to_base_rpy=[float(a) for a in rover.imu_to_base_rpy_rad],
         imu_to_base_xyz=[float(a) for a in rover.imu_to_base_xyz_m],
         initial_latitude_deg=site.latitude_deg, initial_longitude_deg=site.longitude_deg,
@@ -79,11 +84,15 @@ def sim_params(result: SimResult) -> object:
 
 
 def write_sim_bag(result: SimResult, bag_path: str | Path,
-                  params_path: str | Path | None = None) -> dict[str, int]:
+                  params_path: str | Path | None = None, *,
+                  profile: RobotProfile | None = None) -> dict[str, int]:
     """Write ``result`` to a new MCAP bag at ``bag_path``; return the message count per topic.
 
     If ``params_path`` is given, also write a ROS 2 params file for the estimator that matches
-    the simulated rover geometry, mounting, start pose, planet and IMU noise.
+    the simulated rover geometry, mounting, start pose, planet and IMU noise. A robot
+    ``profile`` (:mod:`slip_estimator.sim.robots`) makes the drivers publish as that robot's
+    do: joint states of some wheels only, positions without velocities, an IMU without
+    gravity, and the params file names its wheel input.
     """
     from geometry_msgs.msg import Vector3Stamped
     from nav_msgs.msg import Odometry
@@ -121,13 +130,20 @@ def write_sim_bag(result: SimResult, bag_path: str | Path,
     imu_diag_f = [var_f, 0.0, 0.0, 0.0, var_f, 0.0, 0.0, 0.0, var_f]
     wheel_speed_var = (1.0 / (cfg.rover.encoder_pulses_per_m / cfg.rate_wheel_hz)) ** 2
     counts = {name: 0 for name, _ in streams}
+    columns = profile.joint_columns if profile else tuple(range(len(WHEEL_JOINT_NAMES)))
+    f_imu = result.f_ib_imu
+    if profile is not None and profile.imu_gravity_removed:
+        # A driver that subtracts gravity with its own attitude: linear acceleration.
+        C_imu_base = rpy_to_dcm(*cfg.rover.imu_to_base_rpy_rad)
+        up_imu = np.einsum('ij,nkj,k->ni', C_imu_base.T, result.C_base_o, np.array([0, 0, 1.0]))
+        f_imu = f_imu - result.gravity_mps2 * up_imu
 
     def imu_msg(i: int) -> Imu:
         m = Imu()
         _stamp(m.header, int(imu_ns[i]))
         m.header.frame_id = 'imu_link'
         m.orientation_covariance[0] = -1.0
-        f, w = result.f_ib_imu[i], result.omega_ib_imu[i]
+        f, w = f_imu[i], result.omega_ib_imu[i]
         m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = map(float, w)
         m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = \
             map(float, f)
@@ -139,9 +155,10 @@ def write_sim_bag(result: SimResult, bag_path: str | Path,
         m = JointState()
         _stamp(m.header, int(wheel_ns[j]))
         m.header.frame_id = 'base_link'
-        m.name = list(WHEEL_JOINT_NAMES)
-        m.position = [float(a) for a in result.wheel_angle_rad[j]]
-        m.velocity = [float(a) for a in result.wheel_rate_rps[j]]
+        m.name = [WHEEL_JOINT_NAMES[k] for k in columns]
+        m.position = [float(result.wheel_angle_rad[j, k]) for k in columns]
+        if profile is None or profile.joint_velocities:
+            m.velocity = [float(result.wheel_rate_rps[j, k]) for k in columns]
         return m
 
     def wheel_odom_msg(j: int) -> Odometry:
@@ -219,7 +236,9 @@ def write_sim_bag(result: SimResult, bag_path: str | Path,
     if params_path is not None:
         from slip_estimator.paramfile import save_params
 
-        save_params(sim_params(result), params_path)  # type: ignore[arg-type]
+        params = (sim_params(result) if profile is None
+                  else sim_params(result, profile.wheel_input, profile.joint_columns))
+        save_params(params, params_path)  # type: ignore[arg-type]
     return counts
 
 

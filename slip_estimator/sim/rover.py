@@ -300,9 +300,13 @@ def simulate(config: ScenarioConfig) -> SimResult:
     t = (np.arange(n_fine + 2) - 1) * h
     starts = np.cumsum([0.0] + [s.duration_s for s in cfg.segments[:-1]])
     segs = cfg.segments
-    cmd = _profile(t, starts, [s.speed_mps for s in segs], [s.speed_ramp_s for s in segs], 0.0)
+    # A log that starts in motion begins at the first segment's targets (no ramp from rest).
+    first = segs[0] if cfg.start_moving else None
+    cmd = _profile(t, starts, [s.speed_mps for s in segs], [s.speed_ramp_s for s in segs],
+                   first.speed_mps if first else 0.0)
     cmd = np.maximum(cmd, 0.0)
-    psi_dot = _profile(t, starts, [s.yaw_rate_rps for s in segs], [1.0] * len(segs), 0.0)
+    psi_dot = _profile(t, starts, [s.yaw_rate_rps for s in segs], [1.0] * len(segs),
+                       first.yaw_rate_rps if first else 0.0)
     s_cmd = _profile(t, starts, [s.slip for s in segs], [s.slip_ramp_s for s in segs],
                      segs[0].slip)
     spin = np.maximum(_profile(t, starts, [s.spin_mps for s in segs], [1.0] * len(segs), 0.0),
@@ -446,6 +450,8 @@ def simulate(config: ScenarioConfig) -> SimResult:
     dt_wheel = 1.0 / cfg.rate_wheel_hz
     prev = np.vstack([counts[:1], counts[:-1]])
     wheel_rate = (counts - prev) / (ppm * dt_wheel * rover.wheel_radius_m)
+    if cfg.start_moving:  # no count before the first: its rate is the rim speed then
+        wheel_rate[0] = rim[i_wheel[0]] / rover.wheel_radius_m
     angle = counts / (ppm * rover.wheel_radius_m)
     rim_w = rim[i_wheel]
     v_w = v[i_wheel]

@@ -287,7 +287,8 @@ class ScenarioConfig:
 
     Attributes
     ----------
-    segments : the commanded motion; the first must be stationary for >= 10 s.
+    segments : the commanded motion; the first must be stationary for >= 10 s unless
+        ``start_moving``.
     truth_seed : seed of the trajectory/terrain randomness.
     noise_seed : seed of all sensor errors.
     rate_imu_hz, rate_wheel_hz, rate_truth_hz : sample rates, Hz. ``rate_imu_hz *
@@ -295,6 +296,8 @@ class ScenarioConfig:
     oversample : truth is generated at rate_imu_hz * oversample for finite differences.
     duration_s : optional cut of the scenario (None = sum of the segment durations), s.
     epoch_ns : Unix time of t = 0, ns (stamps in the bag).
+    start_moving : the rover is already at the first segment's speed, heading rate and slip
+        at t = 0 (a log that starts in motion; no initial stationary period is required).
     """
 
     segments: tuple[Segment, ...]
@@ -311,12 +314,15 @@ class ScenarioConfig:
     terrain: TerrainConfig = field(default_factory=TerrainConfig)
     gnss: GnssConfig = field(default_factory=GnssConfig)
     epoch_ns: int = 1_700_000_000_000_000_000
+    start_moving: bool = False
 
     def __post_init__(self) -> None:
         if not self.segments:
             raise ValueError('a scenario needs at least one segment')
         first = self.segments[0]
-        if first.speed_mps != 0.0 or first.yaw_rate_rps != 0.0 or first.spin_mps != 0.0 \
+        if self.start_moving:
+            pass
+        elif first.speed_mps != 0.0 or first.yaw_rate_rps != 0.0 or first.spin_mps != 0.0 \
                 or first.duration_s < 10.0:
             raise ValueError('the first segment must be stationary for >= 10 s (alignment)')
         fine = self.rate_imu_hz * self.oversample
