@@ -211,17 +211,36 @@ class StationaryDetector:
         return self.imu_steady()
 
 
+_SCRUB_FRACTION = 0.5
+"""A turn scrubs when the side speed difference it needs exceeds this fraction of the forward
+rim speed (the inner side then rolls at less than half the mean)."""
+
+
 class TurnDetector:
-    """A skid-steer turn: |yaw rate| above a threshold. The wheels then slide sideways and the
-    lateral non-holonomic constraint does not hold (Kilic et al. 2022, sec. 3.2)."""
+    """A skid-steer turn: |yaw rate| above a threshold, and tight enough that the wheels
+    scrub. The wheels then slide sideways and the lateral non-holonomic constraint does not
+    hold (Kilic et al. 2022, sec. 3.2).
+
+    How tight: the turn needs a side speed difference of yaw rate x the effective track
+    (:mod:`slip_estimator.core.track_width`, 1.5-1.9x the wheel spacing on skid-steer
+    robots); while that stays below ``_SCRUB_FRACTION`` of the rim speed, both sides roll
+    forward and the robot follows an arc (a fast robot's 0.4 rad/s arc at 0.9 m/s is not an
+    in-place turn).
+    """
 
     def __init__(self, yaw_rate_threshold_rps: float) -> None:
         self.yaw_rate_threshold_rps = yaw_rate_threshold_rps
 
-    def is_turning(self, omega_nb_b: np.ndarray, C_b_n: np.ndarray) -> bool:
-        """Yaw rate = body rate projected on the local vertical."""
-        yaw_rate = float(C_b_n[2] @ omega_nb_b)
-        return math.fabs(yaw_rate) > self.yaw_rate_threshold_rps
+    def is_turning(self, omega_nb_b: np.ndarray, C_b_n: np.ndarray,
+                   rim_speed_mps: float | None = None, track_width_m: float = 0.0) -> bool:
+        """Yaw rate = body rate projected on the local vertical; ``rim_speed_mps`` (the
+        latest mean rim speed, None without wheels) and the effective ``track_width_m`` tell
+        an arc from a scrubbing turn."""
+        yaw_rate = math.fabs(float(C_b_n[2] @ omega_nb_b))
+        if yaw_rate <= self.yaw_rate_threshold_rps:
+            return False
+        return (rim_speed_mps is None
+                or 0.5 * yaw_rate * track_width_m > _SCRUB_FRACTION * math.fabs(rim_speed_mps))
 
 
 class ImuRate:

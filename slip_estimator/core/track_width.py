@@ -4,8 +4,10 @@ A skid-steer robot turns by scrubbing its wheels sideways: the rim-speed differe
 for a yaw rate is larger than the geometric track predicts, rim_R - rim_L = B_eff * omega
 (FLU yaw rate), with B_eff 1.5-1.9 times the wheel spacing on real robots (the multiplier
 users hand-tune in diff-drive controllers). B_eff is the least-squares ratio over turning
-samples, with a fading memory so that it follows the ground. Only the standard library is
-used.
+samples, with a fading memory so that it follows the ground; a fit whose correlation is
+below ``_MIN_CORRELATION`` (the differential does not follow the yaw rate: wheels lifted,
+tracks slipping, wrong joint sides) is no width, and the declared one stays. Only the
+standard library is used.
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ _MIN_RATE_RPS = 0.1
 _MEMORY = 300
 """Turning samples the estimate remembers (30 s of turning at 10 Hz)."""
 _MIN_SAMPLES = 20
+_MIN_CORRELATION = 0.8
 _RATIO_BOUNDS = (0.5, 3.0)
 """An estimate outside these multiples of the declared track is a fault, not a robot."""
 
@@ -23,7 +26,7 @@ class TrackWidthEstimator:
 
     def __init__(self, declared_m: float) -> None:
         self.declared_m = declared_m
-        self._sxy = self._sxx = 0.0
+        self._sxy = self._sxx = self._syy = 0.0
         self.samples = 0
 
     def add(self, yaw_rate_flu_rps: float, rim_right_minus_left_mps: float) -> None:
@@ -34,11 +37,20 @@ class TrackWidthEstimator:
         k = 1.0 / min(self.samples, _MEMORY)
         self._sxy += k * (w * rim_right_minus_left_mps - self._sxy)
         self._sxx += k * (w * w - self._sxx)
+        self._syy += k * (rim_right_minus_left_mps ** 2 - self._syy)
+
+    @property
+    def correlation(self) -> float:
+        """Correlation of the wheel differential with the yaw rate over the turns (about
+        zero-mean pairs: left and right turns), 0 before any turn."""
+        if self._sxx <= 0.0 or self._syy <= 0.0:
+            return 0.0
+        return self._sxy / (self._sxx * self._syy) ** 0.5
 
     @property
     def width_m(self) -> float:
         """The effective track width, m (the declared one until enough turning is seen)."""
-        if self.samples < _MIN_SAMPLES or self._sxx <= 0.0:
+        if self.samples < _MIN_SAMPLES or self.correlation < _MIN_CORRELATION:
             return self.declared_m
         lo, hi = _RATIO_BOUNDS
         return min(max(self._sxy / self._sxx, lo * self.declared_m), hi * self.declared_m)
