@@ -277,3 +277,25 @@ def test_node_adapter_accepts_positions_only_joint_states():
     topic = '/joint_states'
     assert adapter.received[topic] == 5
     assert dict(adapter.rejected) == {(topic, convert.REASON_FIRST_POSITION): 1}
+
+
+def test_imu_orientation_used_only_when_provided():
+    """orientation_covariance[0] = -1 (REP-145: no orientation): no tilt; otherwise the
+    quaternion gives the body's roll and pitch through the mounting."""
+    import math
+
+    from sensor_msgs.msg import Imu
+
+    from slip_estimator.core.frames import imu_to_body_dcm
+    from slip_estimator.ros.convert import imu_from_msg
+
+    m = Imu()
+    m.header.stamp.sec = 5
+    m.linear_acceleration.z = 9.8
+    half = math.radians(5.0) / 2  # imu_link rolled 5 deg about its x axis
+    m.orientation.w, m.orientation.x = math.cos(half), math.sin(half)
+    C = imu_to_body_dcm([0.0, 0.0, 0.0])
+    roll, pitch = imu_from_msg(m, C).tilt_rp_rad
+    assert roll == pytest.approx(math.radians(5.0), abs=1e-9) and abs(pitch) < 1e-9
+    m.orientation_covariance[0] = -1.0
+    assert imu_from_msg(m, C).tilt_rp_rad is None

@@ -35,6 +35,8 @@ from slip_estimator.core.planet import Planet, earth_rate_n, gravity_n
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 
 _NS = 1_000_000_000
+_MAX_TILT_DISAGREEMENT_RAD = math.radians(10.0)
+"""An IMU orientation further than this from the wheel-corrected levelling is not used."""
 
 
 def specific_force_problem(f_mean_b: np.ndarray, gravity_mps2: float) -> str | None:
@@ -60,6 +62,25 @@ def specific_force_problem(f_mean_b: np.ndarray, gravity_mps2: float) -> str | N
                 'specific force); publish the raw accelerometer')
     return (f'specific force magnitude {norm:.2f} m/s^2 where gravity is {gravity_mps2:.2f}: '
             'wrong units or scale')
+
+
+def tilt_from_orientation(q_imu_w_wxyz: tuple[float, float, float, float],
+                          C_imu_b: np.ndarray) -> tuple[float, float] | None:
+    """Roll and pitch (rad, FRD body in NED) from an IMU's orientation quaternion of imu_link in
+    a z-up world frame (REP-103/145), given the mounting ``C_imu_b`` (imu -> body FRD); None
+    for a quaternion that is not one (zero, non-finite, norm off by > 10 %). The heading is
+    not used (a magnetometer's yaw is not the configured one)."""
+    w, x, y, z = q_imu_w_wxyz
+    n2 = w * w + x * x + y * y + z * z
+    if not (math.isfinite(n2) and 0.81 <= n2 <= 1.21):
+        return None
+    # World up in imu_link (third row of C_world_imu, normalised), then down in body FRD.
+    up_imu = np.array([2.0 * (x * z - w * y), 2.0 * (y * z + w * x),
+                       w * w - x * x - y * y + z * z]) / n2
+    down_b = -(C_imu_b @ up_imu)
+    pitch = -math.asin(max(-1.0, min(1.0, float(down_b[0]))))
+    roll = math.atan2(float(down_b[1]), float(down_b[2]))
+    return roll, pitch
 
 
 def level(f_b: np.ndarray) -> tuple[float, float]:
@@ -89,10 +110,14 @@ class MotionStart:
         self._imu: deque = deque()  # (t, f_b, w_b)
         self._wheel: deque = deque()  # (t, rim speed)
         self.first_ns: int | None = None
+        self.message_tilt_rp_rad: tuple[float, float] | None = None
+        """Roll and pitch from the IMU's own orientation, latest sample (None: not provided)."""
 
-    def add_imu(self, stamp_ns: int, f_b: list[float], w_b: list[float]) -> None:
+    def add_imu(self, stamp_ns: int, f_b: list[float], w_b: list[float],
+                tilt_rp_rad: tuple[float, float] | None = None) -> None:
         if self.first_ns is None:
             self.first_ns = stamp_ns
+        self.message_tilt_rp_rad = tilt_rp_rad
         imu = self._imu
         imu.append((stamp_ns, f_b, w_b))
         while imu[0][0] < stamp_ns - self.window_ns:
@@ -119,6 +144,18 @@ class MotionStart:
         f = np.array([x[1] for x in self._imu]).mean(axis=0)
         w = np.array([x[2] for x in self._imu]).mean(axis=0)
         return f, w
+
+    def tilt(self) -> tuple[float, float]:
+        """Roll and pitch (rad, FRD in NED) to start from: the IMU's own orientation when it
+        provides one that agrees with the wheel-corrected levelling to ``_MAX_TILT_DISAGREEMENT_RAD``
+        (an identity quaternion left in the message by a driver that has none does not),
+        else the levelling."""
+        roll, pitch = level(self.specific_force())
+        msg = self.message_tilt_rp_rad
+        if msg is not None and max(abs(msg[0] - roll), abs(msg[1] - pitch)) \
+                <= _MAX_TILT_DISAGREEMENT_RAD:
+            return msg
+        return roll, pitch
 
     def specific_force(self) -> np.ndarray:
         f, w = self.mean_imu()

@@ -39,11 +39,14 @@ class ImuSample:
     f_ib_b : specific force of b w.r.t. inertial space, resolved in b, m/s^2 (at rest on a level
         surface approximately (0, 0, -g) in FRD).
     omega_ib_b : angular rate of b w.r.t. inertial space, resolved in b, rad/s.
+    tilt_rp_rad : roll and pitch of b (FRD in NED), rad, from the IMU's own orientation when
+        its message says it provides one (``orientation_covariance[0] != -1``); else None.
     """
 
     stamp_ns: int
     f_ib_b: np.ndarray
     omega_ib_b: np.ndarray
+    tilt_rp_rad: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True, slots=True)

@@ -39,6 +39,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 
+from slip_estimator.core.alignment import tilt_from_orientation
 from slip_estimator.core.types import (
     MAX_ANGULAR_RATE_RPS,
     MAX_SPECIFIC_FORCE_MPS2,
@@ -134,15 +135,20 @@ def imu_from_msg(msg: Imu, C_imu_b: np.ndarray) -> ImuSample | str:
     if (math.hypot(*f_ib_imu) > MAX_SPECIFIC_FORCE_MPS2
             or math.hypot(*omega_ib_imu) > MAX_ANGULAR_RATE_RPS):
         return REASON_ABSURD_IMU
+    cov, *q_wxyz = _IMU_ORIENTATION(msg)
+    # orientation_covariance[0] = -1: no orientation (REP-145); anything else: provided.
+    tilt = None if cov[0] == -1.0 else tilt_from_orientation(q_wxyz, C_imu_b)
     return ImuSample(stamp_ns=stamp_ns,
                      f_ib_b=C_imu_b @ np.array(f_ib_imu),
-                     omega_ib_b=C_imu_b @ np.array(omega_ib_imu))
+                     omega_ib_b=C_imu_b @ np.array(omega_ib_imu), tilt_rp_rad=tilt)
 
 
 _IMU_FIELDS = fields_getter(Imu, 'header.stamp.sec', 'header.stamp.nanosec',
                             'linear_acceleration.x', 'linear_acceleration.y',
                             'linear_acceleration.z', 'angular_velocity.x', 'angular_velocity.y',
                             'angular_velocity.z')
+_IMU_ORIENTATION = fields_getter(Imu, 'orientation_covariance', 'orientation.w', 'orientation.x',
+                                 'orientation.y', 'orientation.z')
 
 
 def wheel_side(joint_name: str) -> str | None:
