@@ -248,3 +248,33 @@ def test_node_publishes_wheel_odometry_for_a_gravity_free_imu():
     diags = [m for t, m in published if t == '/diagnostics']
     assert any(s.level in (2, b'\x02') and 'gravity removed' in s.message
                for d in diags for s in d.status)
+
+
+def test_turn_detector_tells_an_arc_from_a_scrubbing_turn():
+    """0.4 rad/s at 0.9 m/s on a skid-steer robot with a 0.94 m effective track is an arc
+    (the inner side still rolls at 0.71 m/s); at 0.2 m/s it scrubs; without wheel data the
+    yaw rate alone decides, and below the threshold nothing is a turn."""
+    from slip_estimator.core.detectors import TurnDetector
+
+    turn = TurnDetector(0.25)
+    w_b, C = np.array([0.0, 0.0, 0.4]), np.eye(3)
+    assert not turn.is_turning(w_b, C, 0.9, 0.94)
+    assert turn.is_turning(w_b, C, 0.2, 0.94)
+    assert turn.is_turning(w_b, C, 0.0, 0.94)
+    assert turn.is_turning(w_b, C)
+    assert not turn.is_turning(np.array([0.0, 0.0, 0.2]), C, 0.0, 0.94)
+
+
+def test_track_width_needs_a_differential_that_follows_the_yaw_rate():
+    """A differential proportional to the yaw rate gives the ratio; one that does not follow
+    it (correlation < 0.8) leaves the declared width."""
+    from slip_estimator.core.track_width import TrackWidthEstimator
+
+    rng = np.random.default_rng(0)
+    w = rng.choice([-0.4, 0.4], 200) + rng.normal(0.0, 0.05, 200)
+    good, bad = TrackWidthEstimator(0.5), TrackWidthEstimator(0.5)
+    for wi in w:
+        good.add(wi, 0.85 * wi + rng.normal(0.0, 0.02))
+        bad.add(wi, rng.normal(0.0, 0.3))
+    assert good.width_m == pytest.approx(0.85, rel=0.02) and good.correlation > 0.95
+    assert bad.width_m == 0.5 and abs(bad.correlation) < 0.8

@@ -131,8 +131,8 @@ class SlipEstimator:
         if self.filter.mechanize(f_l, w_l, dt_s):
             self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
             if self.updater.due(sample.stamp_ns):
-                for correction in self.updater.pseudo_measurements(
-                        self.filter, self.stationary, sample.stamp_ns, self.imu_rate.dt_s):
+                for correction in self.updater.pseudo_measurements(self.filter, self.stationary,
+                        sample.stamp_ns, self.imu_rate.dt_s, self.track.width_m):
                     self.history.apply(correction, aid=False)
                 self._check_filter_health(sample.stamp_ns)
                 if not self.aligned:
@@ -146,6 +146,7 @@ class SlipEstimator:
         # 1. check the sample (the supervisor notes its arrival)
         if not self.supervisor.accept_wheel(sample, self.stamp_ns):
             return []
+        self.updater.last_rim_mps = sample.rim_speed_mps
         # 2. the detectors see every sample (when it arrived: wheels may lag the IMU)
         self.stationary.add_wheel(self.supervisor.wheel_arrival_ns,
                                   max(abs(v) for v in wheel_speeds(sample)))
@@ -177,7 +178,7 @@ class SlipEstimator:
 
     def _recover(self, stamp_ns: int, gap_s: float, reason: str) -> None:
         """After an IMU gap or a divergence: velocity from the last rim speed, P widened, slip
-        unknown (after a gap, a window later, the attitude is re-levelled: :meth:`_relevel`)."""
+        unknown (after a gap, the attitude is re-levelled a window later: :meth:`_relevel`)."""
         self.supervisor.start_recovery(stamp_ns, reason)
         self.filter.restart_velocity(self._waiting_wheels.newest_rim_speed_mps(),
                                      lambda st: recovery_covariance(self.params, self.planet,

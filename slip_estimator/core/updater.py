@@ -46,6 +46,7 @@ class Updater:
     def reset(self) -> None:
         self.next_update_ns: int | None = None
         self.is_stationary = self.is_turning = False
+        self.last_rim_mps = 0.0  # the latest wheel sample's mean rim speed (the facade sets it)
 
     def schedule(self, stamp_ns: int) -> None:
         """The next pseudo-measurements at the first propagation epoch from ``stamp_ns``."""
@@ -55,14 +56,18 @@ class Updater:
         return stamp_ns >= self.next_update_ns
 
     def pseudo_measurements(self, flt: ErrorStateFilter, stationary: StationaryDetector,
-                            stamp_ns: int, imu_dt_s: float) -> list[Correction]:
-        """The detectors decide, then ZUPT + ZARU (at rest) or the NHC, one after the other;
-        the corrections made, in order."""
+                            stamp_ns: int, imu_dt_s: float,
+                            track_width_m: float) -> list[Correction]:
+        """The detectors decide (a turn scrubs when the yaw rate x the effective
+        ``track_width_m`` is large against the latest rim speed, while wheels are recent), then
+        ZUPT + ZARU (at rest) or the NHC, one after the other; the corrections made, in order."""
         flt.last_records = []
         self.next_update_ns = stamp_ns + self._period_ns
         w_mean, n = flt.take_mean_rate()
         self.is_stationary = stationary.is_stationary(stamp_ns)
-        self.is_turning = self.turn.is_turning(w_mean - flt.state.b_g, flt.state.C_b_n)
+        rim = self.last_rim_mps if stationary.wheels_recent(stamp_ns) else None
+        self.is_turning = self.turn.is_turning(w_mean - flt.state.b_g, flt.state.C_b_n, rim,
+                                               track_width_m)
         out = []
         for c in self.constraints.select(flt.state, w_mean, max(1, n) * imu_dt_s,
                                          self.is_stationary, self.is_turning):
