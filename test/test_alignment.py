@@ -278,3 +278,57 @@ def test_track_width_needs_a_differential_that_follows_the_yaw_rate():
         bad.add(wi, rng.normal(0.0, 0.3))
     assert good.width_m == pytest.approx(0.85, rel=0.02) and good.correlation > 0.95
     assert bad.width_m == 0.5 and abs(bad.correlation) < 0.8
+
+
+def test_tilt_from_an_imu_orientation_through_the_mounting():
+    """The IMU's quaternion (imu_link in a z-up world) through a sideways mounting gives the
+    body's roll and pitch (FRD in NED); a zero quaternion gives none."""
+    from slip_estimator.core.alignment import tilt_from_orientation
+    from slip_estimator.core.frames import C_ENU_NED, C_FLU_FRD, imu_to_body_dcm
+
+    roll, pitch = math.radians(4.0), math.radians(-7.0)
+    C_b_n = rpy_to_dcm(roll, pitch, 1.2)  # FRD body in NED
+    C_base_enu = C_ENU_NED @ C_b_n @ C_FLU_FRD
+    mount = [0.0, 0.0, math.pi / 2]
+    C_imu_b = imu_to_body_dcm(mount)  # imu -> FRD
+    C_imu_enu = C_base_enu @ C_FLU_FRD @ C_imu_b
+    from slip_estimator.sim.rover import _dcm_to_quat_wxyz
+
+    q = tuple(_dcm_to_quat_wxyz(C_imu_enu[None])[0])
+    assert tilt_from_orientation(q, C_imu_b) == pytest.approx((roll, pitch), abs=1e-9)
+    assert tilt_from_orientation((0.0, 0.0, 0.0, 0.0), C_imu_b) is None
+
+
+def test_in_motion_start_takes_roll_and_pitch_from_the_imu_orientation():
+    """Joined at 22 s: with the IMU's own orientation (here the truth) the filter starts from
+    it; an orientation 20 deg off the wheel-corrected levelling (a driver's leftover identity
+    quaternion on a tilted robot) is not used."""
+    from slip_estimator.core.estimator import SlipEstimator
+    from slip_estimator.core.frames import C_ENU_NED, C_FLU_FRD
+    from slip_estimator.core.types import ImuSample, WheelSample
+
+    r, p, d, t0 = _joined_in_motion(22.0)
+    t_truth = r.stamps_ns(r.imu_t_s)
+
+    def tilt_true(stamp):
+        C = C_ENU_NED @ r.C_base_o[np.argmin(abs(t_truth - stamp))] @ C_FLU_FRD
+        return math.atan2(C[2, 1], C[2, 2]), -math.asin(C[2, 0])
+
+    for offset, expect_message in ((0.0, True), (math.radians(20.0), False)):
+        est = SlipEstimator(p)
+        j = 0
+        for i, stamp in enumerate(d.imu_ns.tolist()):
+            while j < len(d.wheel_ns) and d.wheel_ns[j] < stamp:
+                x = d.rim_mps[j]
+                est.add_wheel(WheelSample(int(d.wheel_ns[j]), float(x.mean())))
+                j += 1
+            roll, pitch = tilt_true(stamp)
+            est.add_imu(ImuSample(stamp, d.f_ib_b[i], d.omega_ib_b[i], (roll + offset, pitch)))
+            if est.aligned:
+                break
+        C = est.state.C_b_n
+        got = math.atan2(C[2, 1], C[2, 2]), -math.asin(C[2, 0])
+        if expect_message:
+            assert got == pytest.approx(tilt_true(stamp), abs=1e-9)
+        else:
+            assert abs(got[0] - roll) < math.radians(1.0)

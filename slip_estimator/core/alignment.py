@@ -176,6 +176,8 @@ class AlignmentStart:
     """mean gyro rate at rest (rad/s), None in motion (gyro bias starts at zero)"""
     speed_mps: float | None = None
     """in motion: the rim speed to start the velocity from, m/s; None at rest"""
+    tilt_rp_rad: tuple[float, float] | None = None
+    """in motion: roll and pitch to start from (:meth:`MotionStart.tilt`); None: levelling"""
 
 
 class AlignmentCollector:
@@ -217,11 +219,12 @@ class AlignmentCollector:
         self.motion.add_wheel(stamp_ns, rim_speed_mps)
 
     def add_imu(self, f_b: np.ndarray, w_b: np.ndarray, stamp_ns: int, stationary: bool,
-                nominal_dt_s: float) -> AlignmentStart | None:
-        """One IMU sample (``stationary``: the detector's verdict now); the alignment to do,
-        if any."""
+                nominal_dt_s: float,
+                tilt_rp_rad: tuple[float, float] | None = None) -> AlignmentStart | None:
+        """One IMU sample (``stationary``: the detector's verdict now; ``tilt_rp_rad``: roll
+        and pitch from the IMU's own orientation, if provided); the alignment to do, if any."""
         motion = self.motion
-        motion.add_imu(stamp_ns, f_b, w_b)
+        motion.add_imu(stamp_ns, f_b, w_b, tilt_rp_rad)
         if not stationary:
             self._rows.clear()
             if (stamp_ns - motion.first_ns >= self._motion_after_ns
@@ -229,7 +232,7 @@ class AlignmentCollector:
                     and not self._refused(motion.mean_imu()[0])):
                 f = motion.specific_force()
                 speed, _ = motion.speed_and_accel()
-                return AlignmentStart(f, None, speed)
+                return AlignmentStart(f, None, speed, motion.tilt())
             return None
         self._rows.append(np.concatenate([f_b, w_b]))
         if len(self._rows) * nominal_dt_s >= self._duration_s:
@@ -245,11 +248,11 @@ class AlignmentCollector:
 
 def aligned_state(start: AlignmentStart, planet: Planet, l_bw_b: np.ndarray,
                   heading_rad: float, llh_base: np.ndarray) -> NavState:
-    """The navigation state after levelling on ``start.f_b`` (Groves sec. 5.6.2): heading and
-    base_link position ``llh_base`` from the parameters, the IMU lever arm ``-l_bw_b`` taken
-    off; gyro bias from the mean rate at rest less the planet rate (zero in motion); velocity
+    """The navigation state after levelling on ``start.f_b`` (Groves sec. 5.6.2; roll and
+    pitch ``start.tilt_rp_rad`` instead when given): heading and base_link position
+    ``llh_base`` from the parameters, the IMU lever arm ``-l_bw_b`` taken off; gyro bias from the mean rate at rest less the planet rate (zero in motion); velocity
     from the rim speed along body x in motion, zero at rest."""
-    roll, pitch = level(start.f_b)
+    roll, pitch = level(start.f_b) if start.tilt_rp_rad is None else start.tilt_rp_rad
     C_b_n = frames.rpy_to_dcm(roll, pitch, heading_rad)
     r_imu_b = -l_bw_b
     llh = llh_base - curvilinear_to_ned(planet, llh_base[0], llh_base[2]) @ (-(C_b_n @ r_imu_b))

@@ -118,7 +118,7 @@ class SlipEstimator:
         if not self.aligned:
             start = self.alignment.add_imu(sample.f_ib_b, sample.omega_ib_b, sample.stamp_ns,
                                            self.stationary.is_stationary(sample.stamp_ns),
-                                           self.imu_rate.dt_s)
+                                           self.imu_rate.dt_s, sample.tilt_rp_rad)
             if start is not None:
                 self._align(start, sample.stamp_ns)
             return self._slip_before_alignment()
