@@ -299,3 +299,21 @@ def test_imu_orientation_used_only_when_provided():
     assert roll == pytest.approx(math.radians(5.0), abs=1e-9) and abs(pitch) < 1e-9
     m.orientation_covariance[0] = -1.0
     assert imu_from_msg(m, C).tilt_rp_rad is None
+
+
+def test_imu_noise_variances_from_the_message_covariances():
+    """The largest diagonal variances when both covariances are given; None when unknown."""
+    from sensor_msgs.msg import Imu
+
+    from slip_estimator.ros.convert import imu_from_msg
+
+    m = Imu()
+    m.header.stamp.sec = 5
+    m.linear_acceleration.z = 9.8
+    C = frames.imu_to_body_dcm([0.0, 0.0, 0.0])
+    assert imu_from_msg(m, C).noise_var is None
+    m.linear_acceleration_covariance[0] = m.linear_acceleration_covariance[8] = 0.0025
+    m.linear_acceleration_covariance[4] = 0.003
+    assert imu_from_msg(m, C).noise_var is None  # gyro covariance unknown
+    m.angular_velocity_covariance[0] = 4e-4
+    assert imu_from_msg(m, C).noise_var == (0.003, 4e-4)

@@ -125,6 +125,8 @@ class StationaryDetector:
         # The IMU's own spread at rest (accel m/s^2, gyro rad/s), learned while the wheels
         # have been stopped for a window: the thresholds never sit below its noise.
         self.rest_std: list[float] | None = None
+        # The IMU's noise std (accel m/s^2, gyro rad/s) its messages declare, if they do.
+        self.sensor_std: list[float] | None = None
 
     @classmethod
     def for_params(cls, p: Params) -> StationaryDetector:
@@ -180,12 +182,14 @@ class StationaryDetector:
 
     def thresholds(self) -> tuple[float, float]:
         """Accelerometer and gyro std limits: the configured ones, or _REST_MARGIN times the
-        spread this IMU shows at rest if that is larger (a consumer MEMS IMU is noisier at
-        rest than the configured limits)."""
-        if self.rest_std is None:
+        spread this IMU shows at rest (or, before a rest was seen, the noise its messages
+        declare) if that is larger (a consumer MEMS IMU is noisier at rest than the configured
+        limits)."""
+        noise = self.rest_std if self.rest_std is not None else self.sensor_std
+        if noise is None:
             return self.accel_std_max_mps2, self.gyro_std_max_rps
-        return (max(self.accel_std_max_mps2, _REST_MARGIN * self.rest_std[0]),
-                max(self.gyro_std_max_rps, _REST_MARGIN * self.rest_std[1]))
+        return (max(self.accel_std_max_mps2, _REST_MARGIN * noise[0]),
+                max(self.gyro_std_max_rps, _REST_MARGIN * noise[1]))
 
     def _learn_rest(self, now_ns: int) -> None:
         """The wheels have been still for a window: the IMU window is its rest noise, unless

@@ -218,3 +218,17 @@ def _validate(f: dataclasses.Field, value: Any) -> None:
         if not m['lo'] <= v <= m['hi']:
             raise ParameterError(f'parameter {name}={value!r}: out of range, allowed '
                                  f'[{m["lo"]}, {m["hi"]}] {m["unit"]}')
+
+
+def with_message_noise(params: Params, accel_var_mps2_2: float, gyro_var_rps2: float,
+                       dt_s: float) -> Params | None:
+    """``params`` with the IMU white-noise densities taken from per-sample variances the IMU's
+    messages declare (density = sqrt(variance x sample interval)), when the parameters leave
+    both at their defaults (not configured); None when they are configured."""
+    defaults = Params.__dataclass_fields__
+    if (params.accel_noise_density != defaults['accel_noise_density'].default
+            or params.gyro_noise_density != defaults['gyro_noise_density'].default):
+        return None
+    return dataclasses.replace(params,
+                               accel_noise_density=math.sqrt(accel_var_mps2_2 * dt_s),
+                               gyro_noise_density=math.sqrt(gyro_var_rps2 * dt_s))

@@ -47,6 +47,9 @@ class ImuSample:
     f_ib_b: np.ndarray
     omega_ib_b: np.ndarray
     tilt_rp_rad: tuple[float, float] | None = None
+    noise_var: tuple[float, float] | None = None
+    """Per-sample noise variances (accelerometer m^2/s^4, gyro rad^2/s^2) from the message's
+    covariances when it gives them (largest diagonal element > 0), else None."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -140,13 +140,27 @@ def imu_from_msg(msg: Imu, C_imu_b: np.ndarray) -> ImuSample | str:
     tilt = None if cov[0] == -1.0 else tilt_from_orientation(q_wxyz, C_imu_b)
     return ImuSample(stamp_ns=stamp_ns,
                      f_ib_b=C_imu_b @ np.array(f_ib_imu),
-                     omega_ib_b=C_imu_b @ np.array(omega_ib_imu), tilt_rp_rad=tilt)
+                     omega_ib_b=C_imu_b @ np.array(omega_ib_imu), tilt_rp_rad=tilt,
+                     noise_var=_noise_variances(*_IMU_COVARIANCES(msg)))
+
+
+def _noise_variances(accel_cov: Sequence[float], gyro_cov: Sequence[float]
+                     ) -> tuple[float, float] | None:
+    """The largest diagonal accelerometer and gyro variances of an Imu message, or None when
+    either is not given (all zero: unknown; -1: not measured) or not finite."""
+    var_a = max(accel_cov[0], accel_cov[4], accel_cov[8])
+    var_g = max(gyro_cov[0], gyro_cov[4], gyro_cov[8])
+    if var_a > 0.0 and var_g > 0.0 and math.isfinite(var_a + var_g):
+        return float(var_a), float(var_g)
+    return None
 
 
 _IMU_FIELDS = fields_getter(Imu, 'header.stamp.sec', 'header.stamp.nanosec',
                             'linear_acceleration.x', 'linear_acceleration.y',
                             'linear_acceleration.z', 'angular_velocity.x', 'angular_velocity.y',
                             'angular_velocity.z')
+_IMU_COVARIANCES = fields_getter(Imu, 'linear_acceleration_covariance',
+                                 'angular_velocity_covariance')
 _IMU_ORIENTATION = fields_getter(Imu, 'orientation_covariance', 'orientation.w', 'orientation.x',
                                  'orientation.y', 'orientation.z')
 

@@ -83,6 +83,22 @@ def sim_params(result: SimResult, wheel_input: str = 'joint_states',
         wheel_latency_s=0.5 / cfg.rate_wheel_hz)
 
 
+_IMU_NOISE_PARAMS = ('accel_noise_density', 'gyro_noise_density', 'accel_bias_psd',
+                     'gyro_bias_psd', 'initial_accel_bias_std', 'initial_gyro_bias_std')
+
+
+def profile_params(profile: RobotProfile, result: SimResult) -> object:
+    """The parameters a user of that robot declares: geometry, mounting, start pose and wheel
+    input; the IMU noise model is left at its defaults (the node takes it from the messages)."""
+    import dataclasses
+
+    from slip_estimator.core.params import Params
+
+    params = sim_params(result, profile.wheel_input, profile.joint_columns)
+    defaults = Params()
+    return dataclasses.replace(params, **{k: getattr(defaults, k) for k in _IMU_NOISE_PARAMS})
+
+
 def write_sim_bag(result: SimResult, bag_path: str | Path,
                   params_path: str | Path | None = None, *,
                   profile: RobotProfile | None = None) -> dict[str, int]:
@@ -237,7 +253,7 @@ def write_sim_bag(result: SimResult, bag_path: str | Path,
         from slip_estimator.paramfile import save_params
 
         params = (sim_params(result) if profile is None
-                  else sim_params(result, profile.wheel_input, profile.joint_columns))
+                  else profile_params(profile, result))
         save_params(params, params_path)  # type: ignore[arg-type]
     return counts
 
