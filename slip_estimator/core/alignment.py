@@ -250,7 +250,8 @@ def aligned_state(start: AlignmentStart, planet: Planet, l_bw_b: np.ndarray,
                   heading_rad: float, llh_base: np.ndarray) -> NavState:
     """The navigation state after levelling on ``start.f_b`` (Groves sec. 5.6.2; roll and
     pitch ``start.tilt_rp_rad`` instead when given): heading and base_link position
-    ``llh_base`` from the parameters, the IMU lever arm ``-l_bw_b`` taken off; gyro bias from the mean rate at rest less the planet rate (zero in motion); velocity
+    ``llh_base`` from the parameters, the IMU lever arm ``-l_bw_b`` taken off; gyro bias
+    from the mean rate at rest less the planet rate (zero in motion); velocity
     from the rim speed along body x in motion, zero at rest."""
     roll, pitch = level(start.f_b) if start.tilt_rp_rad is None else start.tilt_rp_rad
     C_b_n = frames.rpy_to_dcm(roll, pitch, heading_rad)
