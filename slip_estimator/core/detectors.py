@@ -120,6 +120,7 @@ class StationaryDetector:
         self.wheel_speed_max_mps = wheel_speed_max_mps
         self.wheel_timeout_ns = wheel_timeout_ns
         self._wheel_stamp_ns: int | None = None
+        self._rim_speed_mps = 0.0  # the latest wheel sample's mean rim speed
         self._wheels_stopped = False
         self._stopped_since_ns: int | None = None
         # The IMU's own spread at rest (accel m/s^2, gyro rad/s), learned while the wheels
@@ -155,9 +156,12 @@ class StationaryDetector:
         """Feed one IMU sample."""
         self.window.add(f_ib_b, omega_ib_b)
 
-    def add_wheel(self, stamp_ns: int, max_abs_rim_speed_mps: float) -> None:
-        """Feed the largest absolute rim speed of one wheel sample."""
+    def add_wheel(self, stamp_ns: int, max_abs_rim_speed_mps: float,
+                  rim_speed_mps: float = 0.0) -> None:
+        """Feed the largest absolute rim speed of one wheel sample (and its mean rim speed,
+        for :meth:`recent_rim_speed_mps`)."""
         self._wheel_stamp_ns = stamp_ns
+        self._rim_speed_mps = rim_speed_mps
         self._wheels_stopped = max_abs_rim_speed_mps <= self.wheel_speed_max_mps
         if not self._wheels_stopped:
             self._stopped_since_ns = None
@@ -168,6 +172,11 @@ class StationaryDetector:
         """True when a wheel sample arrived within the wheel timeout."""
         return (self._wheel_stamp_ns is not None
                 and now_ns - self._wheel_stamp_ns <= self.wheel_timeout_ns)
+
+    def recent_rim_speed_mps(self, now_ns: int) -> float | None:
+        """The latest mean rim speed while wheels are recent (:meth:`wheels_recent`), m/s;
+        else None."""
+        return self._rim_speed_mps if self.wheels_recent(now_ns) else None
 
     def imu_steady(self) -> bool:
         """IMU part of the test (window must be full)."""

@@ -40,8 +40,7 @@ _NS = 1_000_000_000
 
 class SlipEstimator:
     """Strapdown INS + 15-state error-state EKF + detectors + slip computation. Samples may
-    be added in any interleaving; each call returns the slip estimates that became computable.
-    """
+    be added in any interleaving; each call returns the slip estimates that became computable."""
 
     def __init__(self, params: Params) -> None:
         p = self.params = params
@@ -131,8 +130,9 @@ class SlipEstimator:
         if self.filter.mechanize(f_l, w_l, dt_s):
             self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
             if self.updater.due(sample.stamp_ns):
-                for correction in self.updater.pseudo_measurements(self.filter, self.stationary,
-                        sample.stamp_ns, self.imu_rate.dt_s, self.track.width_m):
+                for correction in self.updater.pseudo_measurements(
+                        self.filter, self.stationary, sample.stamp_ns, self.imu_rate.dt_s,
+                        self.track.width_m):
                     self.history.apply(correction, aid=False)
                 self._check_filter_health(sample.stamp_ns)
                 if not self.aligned:
@@ -146,13 +146,10 @@ class SlipEstimator:
         # 1. check the sample (the supervisor notes its arrival)
         if not self.supervisor.accept_wheel(sample, self.stamp_ns):
             return []
-        self.updater.last_rim_mps = sample.rim_speed_mps
         # 2. the detectors see every sample (when it arrived: wheels may lag the IMU)
         self.stationary.add_wheel(self.supervisor.wheel_arrival_ns,
-                                  max(abs(v) for v in wheel_speeds(sample)))
-        if sample.rim_speed_left_mps is not None and sample.rim_speed_right_mps is not None:
-            self.timing.add_wheel(sample.stamp_ns,
-                                  sample.rim_speed_right_mps - sample.rim_speed_left_mps)
+                                  max(abs(v) for v in wheel_speeds(sample)), sample.rim_speed_mps)
+        self.timing.add_wheel(sample.stamp_ns, sample.rim_difference_mps)
         # 3. wait for the INS to reach its time
         if self._waiting_wheels.push(sample):
             self.counters['wheel_future'] += 1
@@ -180,9 +177,8 @@ class SlipEstimator:
         """After an IMU gap or a divergence: velocity from the last rim speed, P widened, slip
         unknown (after a gap, the attitude is re-levelled a window later: :meth:`_relevel`)."""
         self.supervisor.start_recovery(stamp_ns, reason)
-        self.filter.restart_velocity(self._waiting_wheels.newest_rim_speed_mps(),
-                                     lambda st: recovery_covariance(self.params, self.planet,
-                                                                    st, gap_s))
+        self.filter.restart_velocity(self._waiting_wheels.newest_rim_speed_mps(), lambda st:
+                                     recovery_covariance(self.params, self.planet, st, gap_s))
         self.history.clear()
         self.slip_model.reset(from_rest=False)  # the velocity now comes from the rim
         self.updater.schedule(stamp_ns)
@@ -226,9 +222,7 @@ class SlipEstimator:
         if at is None:
             self.counters['wheel_late'] += 1
             return None
-        if wheel.rim_speed_left_mps is not None and wheel.rim_speed_right_mps is not None:
-            self.track.add(-at.yaw_rate_b_rps,
-                           wheel.rim_speed_right_mps - wheel.rim_speed_left_mps)
+        self.track.add(-at.yaw_rate_b_rps, wheel.rim_difference_mps)
         turning = self.updater.is_turning
         if self.supervisor.recovering(wheel.stamp_ns):
             self._apply_aid(self.wheel_aid.reanchor(wheel.rim_speed_mps, turning), at)

@@ -93,7 +93,10 @@ class WheelTimingMonitor:
             self._next_ns = stamp_ns + self.period_ns
             self._estimate()
 
-    def add_wheel(self, stamp_ns: int, differential_mps: float) -> None:
+    def add_wheel(self, stamp_ns: int, differential_mps: float | None) -> None:
+        """One wheel sample's right minus left rim speed (None: not known, ignored)."""
+        if differential_mps is None:
+            return
         self._wheel.append((stamp_ns, differential_mps))
         horizon = stamp_ns - self.horizon_ns
         while self._wheel[0][0] < horizon:

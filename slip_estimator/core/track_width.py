@@ -29,9 +29,10 @@ class TrackWidthEstimator:
         self._sxy = self._sxx = self._syy = 0.0
         self.samples = 0
 
-    def add(self, yaw_rate_flu_rps: float, rim_right_minus_left_mps: float) -> None:
+    def add(self, yaw_rate_flu_rps: float, rim_right_minus_left_mps: float | None) -> None:
+        """One yaw rate and the wheels' right minus left rim speed (None: not known, ignored)."""
         w = yaw_rate_flu_rps
-        if abs(w) < _MIN_RATE_RPS:
+        if rim_right_minus_left_mps is None or abs(w) < _MIN_RATE_RPS:
             return
         self.samples += 1
         k = 1.0 / min(self.samples, _MEMORY)

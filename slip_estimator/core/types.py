@@ -69,6 +69,13 @@ class WheelSample:
     rim_speed_left_mps: float | None = None
     rim_speed_right_mps: float | None = None
 
+    @property
+    def rim_difference_mps(self) -> float | None:
+        """Right minus left mean rim speed, m/s (None without per-side speeds)."""
+        if self.rim_speed_left_mps is None or self.rim_speed_right_mps is None:
+            return None
+        return self.rim_speed_right_mps - self.rim_speed_left_mps
+
 
 @dataclass(frozen=True, slots=True)
 class SlipEstimate:

@@ -46,7 +46,6 @@ class Updater:
     def reset(self) -> None:
         self.next_update_ns: int | None = None
         self.is_stationary = self.is_turning = False
-        self.last_rim_mps = 0.0  # the latest wheel sample's mean rim speed (the facade sets it)
 
     def schedule(self, stamp_ns: int) -> None:
         """The next pseudo-measurements at the first propagation epoch from ``stamp_ns``."""
@@ -65,8 +64,8 @@ class Updater:
         self.next_update_ns = stamp_ns + self._period_ns
         w_mean, n = flt.take_mean_rate()
         self.is_stationary = stationary.is_stationary(stamp_ns)
-        rim = self.last_rim_mps if stationary.wheels_recent(stamp_ns) else None
-        self.is_turning = self.turn.is_turning(w_mean - flt.state.b_g, flt.state.C_b_n, rim,
+        self.is_turning = self.turn.is_turning(w_mean - flt.state.b_g, flt.state.C_b_n,
+                                               stationary.recent_rim_speed_mps(stamp_ns),
                                                track_width_m)
         out = []
         for c in self.constraints.select(flt.state, w_mean, max(1, n) * imu_dt_s,
