@@ -332,3 +332,46 @@ def test_in_motion_start_takes_roll_and_pitch_from_the_imu_orientation():
             assert got == pytest.approx(tilt_true(stamp), abs=1e-9)
         else:
             assert abs(got[0] - roll) < math.radians(1.0)
+
+
+@pytest.mark.parametrize('configured', [False, True])
+def test_noise_model_from_the_imu_messages_when_not_configured(configured):
+    """IMU samples that declare their noise (message covariances) at 50 Hz: the stationarity
+    limits never sit below it, and the filter's noise densities come from it unless the
+    parameters configure them."""
+    from slip_estimator.core.estimator import SlipEstimator
+    from slip_estimator.core.params import Params
+    from slip_estimator.core.types import ImuSample
+
+    p = Params(gyro_noise_density=1e-3) if configured else Params()
+    est = SlipEstimator(p)
+    for k in range(30):
+        est.add_imu(ImuSample(1_000_000_000 + k * 20_000_000, np.array([0.0, 0.0, -9.8]),
+                              np.zeros(3), noise_var=(0.0025, 4e-4)))
+    assert est.stationary.thresholds() == pytest.approx((1.5 * 0.05, 1.5 * 0.02))
+    if configured:
+        assert est.params.gyro_noise_density == 1e-3
+        assert est.params.accel_noise_density == Params().accel_noise_density
+    else:
+        assert est.params.gyro_noise_density == pytest.approx(math.sqrt(4e-4 * 0.02))
+        assert est.params.accel_noise_density == pytest.approx(math.sqrt(0.0025 * 0.02))
+
+
+def test_noise_model_measured_at_rest_when_not_configured():
+    """No covariances in the messages and no noise densities in the parameters: the spread
+    the IMU shows at rest (wheels stopped) becomes the filter's noise model."""
+    import dataclasses as dc
+
+    from slip_estimator.core.params import Params
+
+    r = simulate(short_scenario(0))
+    p = sim_params(r)
+    defaults = Params()
+    p = dc.replace(p, accel_noise_density=defaults.accel_noise_density,
+                   gyro_noise_density=defaults.gyro_noise_density)
+    est, _, _ = run_core(p, simulation_data(r, p))
+    rest = est.stationary.rest_std
+    assert rest is not None
+    assert est.params.gyro_noise_density != defaults.gyro_noise_density
+    assert est.params.accel_noise_density ** 2 / est.imu_rate.dt_s == pytest.approx(
+        est.stationary.sensor_std[0] ** 2)

@@ -266,6 +266,11 @@ class ImuRate:
         self._learn_samples = learn_samples
         self._first_dts_s: list[float] | None = []  # until the rate is known
 
+    @property
+    def known(self) -> bool:
+        """True once the rate has been learned (:attr:`dt_s` is the IMU's own)."""
+        return self._first_dts_s is None
+
     def add(self, dt_s: float) -> bool:
         """One regular interval (not a gap); True when the rate has just become known."""
         if self._first_dts_s is None:

@@ -42,8 +42,7 @@ class SlipEstimator:
     """Strapdown INS + 15-state error-state EKF + detectors + slip computation. Samples may
     be added in any interleaving; each call returns the slip estimates that became computable."""
 
-    def __init__(self, params: Params) -> None:
-        p = self.params = params
+    def __init__(self, p: Params) -> None:
         self.planet = PLANETS[p.planet]
         # Lever arm IMU -> base_link origin (the wheel-contact centre), body frame b.
         self.l_bw_b = -(frames.C_FLU_FRD @ np.asarray(p.imu_to_base_xyz, dtype=float))
@@ -77,6 +76,11 @@ class SlipEstimator:
         self.supervisor.reset()
         self.wheel_aid = WheelAid(p)
         self.slip_model = self.wheel_aid.slip_model
+
+    @property
+    def params(self) -> Params:
+        """The parameters in force (IMU noise densities from the IMU when not configured)."""
+        return self.updater.params
 
     @property
     def aligned(self) -> bool:
@@ -113,6 +117,7 @@ class SlipEstimator:
                 return self._evaluate_reached_wheels()
         elif self.imu_rate.add(dt_s):
             self.stationary.fit_window(self.params.stationary_window_s, self.imu_rate.dt_s)
+        self.updater.use_imu_noise(sample.noise_var, self.filter, self.stationary, self.imu_rate)
         # 4. alignment
         if not self.aligned:
             start = self.alignment.add_imu(sample.f_ib_b, sample.omega_ib_b, sample.stamp_ns,
@@ -131,7 +136,7 @@ class SlipEstimator:
             self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
             if self.updater.due(sample.stamp_ns):
                 for correction in self.updater.pseudo_measurements(
-                        self.filter, self.stationary, sample.stamp_ns, self.imu_rate.dt_s,
+                        self.filter, self.stationary, sample.stamp_ns, self.imu_rate,
                         self.track.width_m):
                     self.history.apply(correction, aid=False)
                 self._check_filter_health(sample.stamp_ns)

@@ -73,8 +73,7 @@ class ErrorStateFilter:
         self.planet = planet
         self._decimation = params.covariance_decimation
         self._vibration_fraction = params.vibration_noise_fraction
-        self._noise_psd = (params.gyro_noise_density ** 2, params.accel_noise_density ** 2,
-                   params.accel_bias_psd, params.gyro_bias_psd)
+        self.use_noise(params)
         self._gate = {k: kalman.chi2_threshold(k, params.innovation_gate_probability)
                       for k in (1, 2, 3)}
         self.state: NavState | None = None
@@ -110,6 +109,11 @@ class ErrorStateFilter:
         self._acc_tau_s = 0.0
         self._acc_dv_n_mps = [0.0, 0.0, 0.0]  # sum of f_ib_n * dt since the last propagation
         self._acc_n = 0
+
+    def use_noise(self, params: Params) -> None:
+        """The process noise from the noise densities and bias PSDs of ``params`` (from now)."""
+        self._noise_psd = (params.gyro_noise_density ** 2, params.accel_noise_density ** 2,
+                           params.accel_bias_psd, params.gyro_bias_psd)
 
     # ------------------------------------------------------------------ predict
     def mechanize(self, f_b: list[float], w_b: list[float], dt_s: float) -> bool:

@@ -6,6 +6,11 @@ IMU window still and wheels stopped; turning: yaw rate above its threshold), the
 (at rest) or the non-holonomic constraint (moving; vertical only while turning) are applied one
 after the other through the filter's gated update. Each applied update returns the filter's
 :class:`~slip_estimator.core.history.Correction` to the caller, who keeps the history.
+
+The IMU's noise model: the noise densities of :attr:`Updater.params` (process noise, ZARU)
+come from the IMU itself when the parameters leave them at their defaults
+(:meth:`Updater.use_imu_noise`): from the covariances its messages declare, else from the
+spread it shows at rest (only ever raising the defaults), once per filter.
 """
 from __future__ import annotations
 
@@ -13,13 +18,13 @@ import math
 
 import numpy as np
 
-from slip_estimator.core.detectors import StationaryDetector, TurnDetector
+from slip_estimator.core.detectors import ImuRate, StationaryDetector, TurnDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
 from slip_estimator.core.history import Correction
 from slip_estimator.core.measurements import (NonHolonomic, PseudoMeasurements,
                                               ZeroAngularRate, ZeroVelocity)
-from slip_estimator.core.params import Params
+from slip_estimator.core.params import Params, with_message_noise
 from slip_estimator.core.planet import Planet
 
 _NS = 1_000_000_000
@@ -29,11 +34,13 @@ class Updater:
     """Schedules and applies the measurement updates (see the module docstring).
 
     ``counters`` (update and gate counts) and ``monitor`` (normalised residuals) are the
-    estimator's records, written here for every update.
+    estimator's records, written here for every update. :attr:`params` are the parameters
+    in force (the IMU noise densities adopted from the IMU, :meth:`use_imu_noise`).
     """
 
     def __init__(self, p: Params, planet: Planet, l_bw_b: np.ndarray, counters: dict[str, int],
                  monitor: ResidualMonitor) -> None:
+        self.params = p
         self.constraints = PseudoMeasurements(
             ZeroVelocity(p.zupt_velocity_std),
             ZeroAngularRate(planet, p.zaru_rate_std, p.gyro_noise_density),
@@ -46,6 +53,7 @@ class Updater:
     def reset(self) -> None:
         self.next_update_ns: int | None = None
         self.is_stationary = self.is_turning = False
+        self._noise_adopted = False  # the IMU's noise model taken (once the rate was known)
 
     def schedule(self, stamp_ns: int) -> None:
         """The next pseudo-measurements at the first propagation epoch from ``stamp_ns``."""
@@ -55,11 +63,13 @@ class Updater:
         return stamp_ns >= self.next_update_ns
 
     def pseudo_measurements(self, flt: ErrorStateFilter, stationary: StationaryDetector,
-                            stamp_ns: int, imu_dt_s: float,
+                            stamp_ns: int, imu_rate: ImuRate,
                             track_width_m: float) -> list[Correction]:
         """The detectors decide (a turn scrubs when the yaw rate x the effective
         ``track_width_m`` is large against the latest rim speed, while wheels are recent), then
-        ZUPT + ZARU (at rest) or the NHC, one after the other; the corrections made, in order."""
+        ZUPT + ZARU (at rest) or the NHC, one after the other; the corrections made, in order.
+        Then the IMU spread measured at rest, once there is one, becomes the noise model for
+        the following steps (:meth:`use_imu_noise`, raising the defaults only)."""
         flt.last_records = []
         self.next_update_ns = stamp_ns + self._period_ns
         w_mean, n = flt.take_mean_rate()
@@ -68,12 +78,34 @@ class Updater:
                                                stationary.recent_rim_speed_mps(stamp_ns),
                                                track_width_m)
         out = []
-        for c in self.constraints.select(flt.state, w_mean, max(1, n) * imu_dt_s,
+        for c in self.constraints.select(flt.state, w_mean, max(1, n) * imu_rate.dt_s,
                                          self.is_stationary, self.is_turning):
             correction = self.update(flt, c.name, c.innovation, c.H, c.R, c.channels)
             if correction is not None:
                 out.append(correction)
+        rest = stationary.rest_std
+        if rest is not None:  # measured at rest: the IMU's noise
+            self.use_imu_noise((rest[0] ** 2, rest[1] ** 2), flt, stationary, imu_rate)
         return out
+
+    def use_imu_noise(self, noise_var: tuple[float, float] | None, flt: ErrorStateFilter,
+                      stationary: StationaryDetector, imu_rate: ImuRate) -> None:
+        """The IMU declares its noise variances per sample (accel, gyro; None: it does not), or
+        its spread at rest was measured: the stationarity limits never sit below it and, once
+        the IMU rate is known, the filter's noise densities (process noise, ZARU) come from it
+        when the parameters leave them at their defaults (:func:`params.with_message_noise`).
+        Done once per filter."""
+        if noise_var is None or self._noise_adopted:
+            return
+        stationary.sensor_std = [math.sqrt(v) for v in noise_var]
+        if not imu_rate.known:
+            return
+        self._noise_adopted = True
+        params = with_message_noise(self.params, *noise_var, imu_rate.dt_s)
+        if params is not None:
+            self.params = params
+            flt.use_noise(params)
+            self.constraints.zaru.gyro_noise_density = params.gyro_noise_density
 
     def update(self, flt: ErrorStateFilter, name: str, innovation: np.ndarray, H: np.ndarray,
                R: np.ndarray, channels: tuple[str, ...] | None = None) -> Correction | None:
