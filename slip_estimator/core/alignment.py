@@ -16,7 +16,10 @@ Accuracy of the in-motion start (measured in ``test/test_alignment.py`` on a sim
 joined while cruising): tilt within 1 deg. The velocity starts from the rim speed at zero slip,
 so until the first stop's ZUPT the speed carries the slip of the ground it started on (+0.03 to
 0.04 m/s at s = 0.05; 0.07 m/s RMS over the next 20 s through an uphill patch, against 0.02
-for a start from rest); after the stop it is as good as a start from rest.
+for a start from rest); after the stop it is as good as a start from rest. On the simulated
+robots of ``test/test_other_robots.py`` (README, "Other robots"): tilt 0.2-0.3 deg (industrial
+MEMS, 50 Hz) and 0.3-0.7 deg (consumer MEMS, 30 Hz); forward speed +3 to +16 % over the first
+10 s.
 
 Only the standard library and numpy are used.
 """
