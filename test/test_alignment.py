@@ -357,21 +357,29 @@ def test_noise_model_from_the_imu_messages_when_not_configured(configured):
         assert est.params.accel_noise_density == pytest.approx(math.sqrt(0.0025 * 0.02))
 
 
-def test_noise_model_measured_at_rest_when_not_configured():
+@pytest.mark.parametrize('grade', ['tactical', 'consumer'])
+def test_noise_model_measured_at_rest_when_not_configured(grade):
     """No covariances in the messages and no noise densities in the parameters: the spread
-    the IMU shows at rest (wheels stopped) becomes the filter's noise model."""
+    the IMU shows at rest (wheels stopped) becomes the filter's noise model where it is above
+    the defaults (a consumer IMU's: about its true densities), never below them (a tactical
+    IMU keeps the defaults)."""
     import dataclasses as dc
 
     from slip_estimator.core.params import Params
+    from slip_estimator.sim import ImuErrorConfig
 
-    r = simulate(short_scenario(0))
-    p = sim_params(r)
+    imu = ImuErrorConfig.consumer_mems() if grade == 'consumer' else ImuErrorConfig.tactical()
+    r = simulate(short_scenario(0).replace(imu=imu))
     defaults = Params()
-    p = dc.replace(p, accel_noise_density=defaults.accel_noise_density,
+    p = dc.replace(sim_params(r), accel_noise_density=defaults.accel_noise_density,
                    gyro_noise_density=defaults.gyro_noise_density)
     est, _, _ = run_core(p, simulation_data(r, p))
-    rest = est.stationary.rest_std
-    assert rest is not None
-    assert est.params.gyro_noise_density != defaults.gyro_noise_density
-    assert est.params.accel_noise_density ** 2 / est.imu_rate.dt_s == pytest.approx(
-        est.stationary.sensor_std[0] ** 2)
+    assert est.stationary.rest_std is not None
+    if grade == 'tactical':
+        assert est.params.accel_noise_density == defaults.accel_noise_density
+        assert est.params.gyro_noise_density == defaults.gyro_noise_density
+    else:
+        assert est.params.accel_noise_density == pytest.approx(
+            imu.accel_noise_density_mps2_rthz, rel=0.3)
+        assert est.params.gyro_noise_density == pytest.approx(
+            imu.gyro_noise_density_rps_rthz, rel=0.3)

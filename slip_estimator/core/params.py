@@ -221,14 +221,21 @@ def _validate(f: dataclasses.Field, value: Any) -> None:
 
 
 def with_message_noise(params: Params, accel_var_mps2_2: float, gyro_var_rps2: float,
-                       dt_s: float) -> Params | None:
-    """``params`` with the IMU white-noise densities taken from per-sample variances the IMU's
-    messages declare (density = sqrt(variance x sample interval)), when the parameters leave
-    both at their defaults (not configured); None when they are configured."""
-    defaults = Params.__dataclass_fields__
-    if (params.accel_noise_density != defaults['accel_noise_density'].default
-            or params.gyro_noise_density != defaults['gyro_noise_density'].default):
+                       dt_s: float, raise_only: bool = False) -> Params | None:
+    """``params`` with the IMU white-noise densities taken from per-sample variances
+    (density = sqrt(variance x sample interval), within the parameters' bounds) when the
+    parameters leave both at their defaults (not configured); None when they are configured.
+
+    ``raise_only``: never below the defaults (a spread measured over a short window at rest
+    misses vibration and drift; it can only tell that an IMU is noisier than the defaults)."""
+    fields = Params.__dataclass_fields__
+    if (params.accel_noise_density != fields['accel_noise_density'].default
+            or params.gyro_noise_density != fields['gyro_noise_density'].default):
         return None
-    return dataclasses.replace(params,
-                               accel_noise_density=math.sqrt(accel_var_mps2_2 * dt_s),
-                               gyro_noise_density=math.sqrt(gyro_var_rps2 * dt_s))
+    densities = {}
+    for name, var in (('accel_noise_density', accel_var_mps2_2),
+                      ('gyro_noise_density', gyro_var_rps2)):
+        meta = fields[name].metadata
+        floor = fields[name].default if raise_only else meta['lo']
+        densities[name] = min(max(math.sqrt(var * dt_s), floor), meta['hi'])
+    return dataclasses.replace(params, **densities)
