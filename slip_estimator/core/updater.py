@@ -85,23 +85,25 @@ class Updater:
                 out.append(correction)
         rest = stationary.rest_std
         if rest is not None:  # measured at rest: the IMU's noise
-            self.use_imu_noise((rest[0] ** 2, rest[1] ** 2), flt, stationary, imu_rate)
+            self.use_imu_noise((rest[0] ** 2, rest[1] ** 2), flt, stationary, imu_rate,
+                               raise_only=True)
         return out
 
     def use_imu_noise(self, noise_var: tuple[float, float] | None, flt: ErrorStateFilter,
-                      stationary: StationaryDetector, imu_rate: ImuRate) -> None:
+                      stationary: StationaryDetector, imu_rate: ImuRate,
+                      raise_only: bool = False) -> None:
         """The IMU declares its noise variances per sample (accel, gyro; None: it does not), or
         its spread at rest was measured: the stationarity limits never sit below it and, once
         the IMU rate is known, the filter's noise densities (process noise, ZARU) come from it
-        when the parameters leave them at their defaults (:func:`params.with_message_noise`).
-        Done once per filter."""
+        when the parameters leave them at their defaults (:func:`params.with_message_noise`;
+        ``raise_only``: never below the defaults). Done once per filter."""
         if noise_var is None or self._noise_adopted:
             return
         stationary.sensor_std = [math.sqrt(v) for v in noise_var]
         if not imu_rate.known:
             return
         self._noise_adopted = True
-        params = with_message_noise(self.params, *noise_var, imu_rate.dt_s)
+        params = with_message_noise(self.params, *noise_var, imu_rate.dt_s, raise_only)
         if params is not None:
             self.params = params
             flt.use_noise(params)
