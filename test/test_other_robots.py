@@ -239,3 +239,20 @@ def test_skid_steer_arcs_with_a_tactical_imu_keep_the_speed():
     v_true = np.interp(odo[:, 0], r.stamps_ns(r.imu_t_s), r.speed_mps)
     assert np.sqrt(np.mean((odo[:, 1] - v_true) ** 2)) < 0.3
     assert est.health().values['effective_track_ratio'] == pytest.approx(1.7, rel=0.1)
+
+
+def test_simulate_cli_writes_a_robot_bag_and_its_params(tmp_path, capsys):
+    """``slip-estimator simulate --robot NAME`` writes that robot's bag and the parameters its
+    user would declare (wheel input, the IMU noise left to the messages)."""
+    from slip_estimator.core.params import Params
+    from slip_estimator.paramfile import load_params
+    from slip_estimator.sim.bag import simulate_main
+
+    assert simulate_main(['--robot', 'diff_drive_gravity_free', '-o', str(tmp_path / 'bag'),
+                          '--params-out', str(tmp_path / 'p.yaml')]) == 0
+    assert 'diff_drive_gravity_free' in capsys.readouterr().out
+    p = load_params(tmp_path / 'p.yaml')
+    assert p.wheel_input == 'joint_states' and len(p.wheel_joint_names) == 2
+    assert p.gyro_noise_density == Params().gyro_noise_density
+    joints = next(m.msg for m in read_messages(tmp_path / 'bag', {'/joint_states'}))
+    assert len(joints.position) == 2 and len(joints.velocity) == 0

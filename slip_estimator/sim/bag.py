@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from slip_estimator.core.frames import rpy_to_dcm
-from slip_estimator.sim.robots import RobotProfile
+from slip_estimator.sim.robots import ROBOTS, RobotProfile
 from slip_estimator.sim.rover import SimResult, simulate
 from slip_estimator.sim.scenario import (
     WHEEL_JOINT_NAMES,
@@ -277,12 +277,22 @@ def simulate_main(argv: list[str] | None = None) -> int:
     ap.add_argument('--scenario', choices=tuple(SCENARIOS), default='default',
                     help='default, short, mixed (body- and wheel-side slip), patches (600 s '
                          'random drive) or rough (the same on rough ground)')
+    ap.add_argument('--robot', choices=tuple(ROBOTS), default=None,
+                    help='simulate another robot instead (issue 10 profiles: rates, IMU grade, '
+                         'mounting, wheel input as that robot publishes them); overrides '
+                         '--scenario')
     ap.add_argument('--duration-s', type=float, default=None,
                     help='cut the scenario after this many seconds')
     ap.add_argument('--output', '-o', required=True, help='bag directory to create')
     ap.add_argument('--params-out', default=None, help='write a matching ROS 2 params file')
     args = ap.parse_args(argv)
-    cfg = SCENARIOS[args.scenario](args.seed, noise_seed=args.noise_seed)
+    profile = ROBOTS[args.robot](args.seed) if args.robot else None
+    if profile is not None:
+        cfg = profile.scenario
+        if args.noise_seed is not None:
+            cfg = cfg.replace(noise_seed=args.noise_seed)
+    else:
+        cfg = SCENARIOS[args.scenario](args.seed, noise_seed=args.noise_seed)
     if args.duration_s is not None:
         if args.duration_s < 10.0:
             ap.error('--duration-s must be >= 10 (the initial stationary period)')
@@ -292,9 +302,10 @@ def simulate_main(argv: list[str] | None = None) -> int:
     t0 = time.monotonic()
     result = simulate(cfg)
     t1 = time.monotonic()
-    counts = write_sim_bag(result, args.output, args.params_out)
+    counts = write_sim_bag(result, args.output, args.params_out, profile=profile)
     t2 = time.monotonic()
-    print(f'simulated {cfg.total_duration_s:.1f} s ({args.scenario}, seed {cfg.truth_seed}, '
+    print(f'simulated {cfg.total_duration_s:.1f} s ({args.robot or args.scenario}, '
+          f'seed {cfg.truth_seed}, '
           f'noise seed {cfg.noise_seed}) in {t1 - t0:.1f} s; wrote {args.output} in '
           f'{t2 - t1:.1f} s')
     for topic, n in counts.items():
