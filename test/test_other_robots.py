@@ -54,6 +54,15 @@ class RobotRun:
         moving = [t for t, m in self.topics['/truth/slip'] if m.vector.z > 0]
         return float(np.mean([t in known for t in moving]))
 
+    def honest_slip_share(self) -> float:
+        """Share of the known slips of a truly moving robot within max(3 sigma, 0.1) of the
+        truth (the sigma it publishes says how far off it may be)."""
+        truth = {t: m.vector.x for t, m in self.topics['/truth/slip'] if m.vector.z > 0}
+        ok = [abs(m.vector.x - truth[t]) <= max(3.0 * m.vector.y, 0.1)
+              for t, m in self.topics.get('/slip_estimator/slip_ratio', [])
+              if t in truth and m.vector.z > 0]
+        return float(np.mean(ok))
+
     def all_finite(self) -> bool:
         odo = all(np.isfinite([m.pose.pose.position.x, m.pose.pose.position.y,
                                m.pose.pose.position.z, m.twist.twist.linear.x]).all()
@@ -165,6 +174,20 @@ def test_rep145_robots_publish_odometry_and_known_slip(robot, request):
     first_s = (run.stamps('/slip_estimator/odometry')[0] - run.stamps('/imu/data')[0]) / _NS
     assert first_s <= 2.0
     assert run.known_slip_share() >= 0.8
+
+
+def test_fifty_hz_robot_slip_is_honest(fifty_hz):
+    """Its known slips are within max(3 sigma, 0.1) of the truth (measured 91 %)."""
+    assert fifty_hz.honest_slip_share() >= 0.85
+
+
+@pytest.mark.xfail(strict=True, reason='consumer IMU, no stop: the INS forward speed runs away '
+                   '(accelerometer bias unobservable after an in-motion start) and the slip '
+                   'model follows it to s = -0.82 with sigma 0.01 by 25 s and holds it until '
+                   'the stop at 238 s (forward speed 4-7 m/s against 0.8); measured 1 %')
+def test_skid_steer_slip_is_honest(skid_steer):
+    """The issue's 'honest sigma': known slips within max(3 sigma, 0.1) of the truth."""
+    assert skid_steer.honest_slip_share() >= 0.8
 
 
 def test_fifty_hz_robot_position(fifty_hz):
