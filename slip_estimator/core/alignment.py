@@ -150,9 +150,9 @@ class MotionStart:
 
     def tilt(self) -> tuple[float, float]:
         """Roll and pitch (rad, FRD in NED) to start from: the IMU's own orientation when it
-        provides one that agrees with the wheel-corrected levelling to ``_MAX_TILT_DISAGREEMENT_RAD``
-        (an identity quaternion left in the message by a driver that has none does not),
-        else the levelling."""
+        provides one that agrees with the wheel-corrected levelling to
+        ``_MAX_TILT_DISAGREEMENT_RAD`` (an identity quaternion left in the message by a driver
+        that has none does not), else the levelling."""
         roll, pitch = level(self.specific_force())
         msg = self.message_tilt_rp_rad
         if msg is not None and max(abs(msg[0] - roll), abs(msg[1] - pitch)) \

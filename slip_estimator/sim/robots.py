@@ -18,6 +18,7 @@ from slip_estimator.sim.scenario import (
     ImuErrorConfig,
     RoverConfig,
     ScenarioConfig,
+    Segment,
     _Builder,
 )
 
@@ -44,6 +45,16 @@ class RobotProfile:
     joint_velocities: bool = True
     joint_columns: tuple[int, ...] = (0, 1, 2, 3)
     imu_gravity_removed: bool = False
+
+
+def _drive(seed: int, legs: list[tuple[float, float, float, float | None, str]]
+           ) -> tuple[Segment, ...]:
+    """Segments from (duration s, speed m/s, yaw rate rad/s, slip or None for a random low
+    slip, label) rows, low slips drawn from the truth seed."""
+    b = _Builder(np.random.default_rng(seed))
+    for duration_s, speed_mps, yaw_rate_rps, slip, label in legs:
+        b.add(duration_s, speed_mps, yaw_rate_rps, slip=slip, label=label)
+    return tuple(b.segments)
 
 
 def consumer_imu(rate_hz: float, accel_std_mps2: float, gyro_std_rps: float) -> ImuErrorConfig:
@@ -94,19 +105,14 @@ def skid_steer_robot(seed: int = 0) -> RobotProfile:
 def fifty_hz_robot(seed: int = 0) -> RobotProfile:
     """IMU and wheel odometry at 50 Hz, an industrial MEMS IMU; stands still 1.2 s, then
     drives for two minutes with arcs, slip patches and two stops."""
-    b = _Builder(np.random.default_rng(seed))
-    b.add(1.2, label='stationary')
-    b.add(20.0, 0.8, label='cruise')
-    b.add(10.0, 0.8, 0.3, label='arc left')
-    b.add(10.0, 0.8, slip=0.35, label='sand')
-    b.add(4.0, 0.0, label='stop')
-    b.add(20.0, 0.7, -0.2, label='arc right')
-    b.add(15.0, 0.9, slip=0.5, label='sand, high slip')
-    b.add(20.0, 0.8, label='cruise')
-    b.add(4.0, 0.0, label='stop')
-    b.add(16.0, 0.6, 0.2, label='arc left')
+    segments = _drive(seed, [
+        (1.2, 0.0, 0.0, None, 'stationary'), (20.0, 0.8, 0.0, None, 'cruise'),
+        (10.0, 0.8, 0.3, None, 'arc left'), (10.0, 0.8, 0.0, 0.35, 'sand'),
+        (4.0, 0.0, 0.0, None, 'stop'), (20.0, 0.7, -0.2, None, 'arc right'),
+        (15.0, 0.9, 0.0, 0.5, 'sand, high slip'), (20.0, 0.8, 0.0, None, 'cruise'),
+        (4.0, 0.0, 0.0, None, 'stop'), (16.0, 0.6, 0.2, None, 'arc left')])
     cfg = ScenarioConfig(
-        tuple(b.segments), truth_seed=seed, noise_seed=seed + 1, rate_imu_hz=50.0,
+        segments, truth_seed=seed, noise_seed=seed + 1, rate_imu_hz=50.0,
         rate_wheel_hz=50.0, rate_truth_hz=50.0, start_moving=True,
         rover=RoverConfig(wheel_radius_m=0.1, track_width_m=0.4, effective_track_factor=1.5,
                           imu_to_base_rpy_rad=(0.0, 0.0, 0.0), encoder_pulses_per_m=20000.0),
@@ -117,15 +123,12 @@ def fifty_hz_robot(seed: int = 0) -> RobotProfile:
 def diff_drive_gravity_free_robot(seed: int = 0) -> RobotProfile:
     """A differential drive (two wheels) whose /joint_states carry positions only and whose
     IMU driver removes gravity: 3 s at rest, then a minute of driving with arcs."""
-    b = _Builder(np.random.default_rng(seed))
-    b.add(3.0, label='stationary')
-    b.add(15.0, 0.5, label='cruise')
-    b.add(10.0, 0.5, 0.3, label='arc left')
-    b.add(5.0, 0.0, label='stop')
-    b.add(15.0, 0.6, -0.2, label='arc right')
-    b.add(15.0, 0.5, label='cruise')
+    segments = _drive(seed, [
+        (3.0, 0.0, 0.0, None, 'stationary'), (15.0, 0.5, 0.0, None, 'cruise'),
+        (10.0, 0.5, 0.3, None, 'arc left'), (5.0, 0.0, 0.0, None, 'stop'),
+        (15.0, 0.6, -0.2, None, 'arc right'), (15.0, 0.5, 0.0, None, 'cruise')])
     cfg = ScenarioConfig(
-        tuple(b.segments), truth_seed=seed, noise_seed=seed + 1, rate_imu_hz=100.0,
+        segments, truth_seed=seed, noise_seed=seed + 1, rate_imu_hz=100.0,
         rate_wheel_hz=20.0, rate_truth_hz=20.0, start_moving=True,
         rover=RoverConfig(wheel_radius_m=0.05, track_width_m=0.3,
                           imu_to_base_rpy_rad=(0.0, 0.0, 0.0), encoder_pulses_per_m=5000.0),
@@ -138,16 +141,13 @@ def rate_sweep_scenario(rate_imu_hz: float, rate_wheel_hz: float,
                         seed: int = 0) -> ScenarioConfig:
     """A 45 s drive (2 s at rest, arcs, a slip patch, a stop) with a consumer IMU at the given
     rates, for rate sweeps (20-1000 Hz IMU, 5-100 Hz wheels)."""
-    b = _Builder(np.random.default_rng(seed))
-    b.add(2.0, label='stationary')
-    b.add(10.0, 0.7, label='cruise')
-    b.add(8.0, 0.7, 0.3, label='arc left')
-    b.add(8.0, 0.7, slip=0.4, label='sand')
-    b.add(4.0, 0.0, label='stop')
-    b.add(13.0, 0.6, -0.2, label='arc right')
+    segments = _drive(seed, [
+        (2.0, 0.0, 0.0, None, 'stationary'), (10.0, 0.7, 0.0, None, 'cruise'),
+        (8.0, 0.7, 0.3, None, 'arc left'), (8.0, 0.7, 0.0, 0.4, 'sand'),
+        (4.0, 0.0, 0.0, None, 'stop'), (13.0, 0.6, -0.2, None, 'arc right')])
     lcm = math.lcm(int(rate_imu_hz), int(rate_wheel_hz), 10)
     oversample = max(4, lcm // int(rate_imu_hz))
-    return ScenarioConfig(tuple(b.segments), truth_seed=seed, noise_seed=seed + 1,
+    return ScenarioConfig(segments, truth_seed=seed, noise_seed=seed + 1,
                           rate_imu_hz=rate_imu_hz, rate_wheel_hz=rate_wheel_hz,
                           rate_truth_hz=10.0, oversample=oversample, start_moving=True,
                           imu=consumer_imu(rate_imu_hz, 0.05, 0.02))
