@@ -47,6 +47,19 @@ def test_misspelled_parameter_refused_unless_allowed(tmp_path):
     assert 'ignoring unknown parameter(s) wheel_raduis' in out and 'ERROR' in out, out
 
 
+def test_removed_parameter_does_not_refuse_the_start(tmp_path):
+    """A params file written before a parameter's removal starts the node, as it loads in
+    replay (Params.from_dict); a misspelled name in it is still refused."""
+    from slip_estimator.ros.node import unknown_parameters
+
+    assert unknown_parameters(['max_wheel_latency_s', 'wheel_radius']) == []
+    assert unknown_parameters(['max_wheel_latency', 'wheel_radius']) == ['max_wheel_latency']
+    f = tmp_path / 'p.yaml'
+    f.write_text('slip_estimator:\n  ros__parameters:\n    max_wheel_latency_s: 0.5\n')
+    rc, out = run_briefly(['--params-file', str(f)])
+    assert rc is None and 'unknown parameter' not in out, out
+
+
 def test_misspelled_section_reported_loudly(tmp_path):
     f = tmp_path / 'p.yaml'
     f.write_text('slip_estimatr:\n  ros__parameters:\n    wheel_radius: 0.2\n')

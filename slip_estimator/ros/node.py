@@ -64,7 +64,7 @@ from rclpy.qos import (
 )
 from std_srvs.srv import Trigger
 
-from slip_estimator.core.params import ParameterError, Params, describe
+from slip_estimator.core.params import REMOVED_PARAMETERS, ParameterError, Params, describe
 from slip_estimator.paramfile import NODE_ONLY_PARAMETERS, node_sections, read_yaml
 from slip_estimator.ros.adapter import (
     OUTPUT_TYPES,
@@ -130,9 +130,11 @@ def params_files(argv: list[str]) -> list[str]:
 
 
 def unknown_parameters(names: Any) -> list[str]:
-    """Names set for the node (params files, ``-p``) that are not parameters of it."""
+    """Names set for the node (params files, ``-p``) that are not parameters of it (removed
+    ones, :data:`REMOVED_PARAMETERS`, are not unknown: files that still set them load)."""
     return sorted(n for n in names if n not in _FIELDS and n not in NODE_ONLY_PARAMETERS
-                  and n not in _ROS_OWN_PARAMETERS and not n.startswith('qos_overrides.'))
+                  and n not in REMOVED_PARAMETERS and n not in _ROS_OWN_PARAMETERS
+                  and not n.startswith('qos_overrides.'))
 
 
 class SlipEstimatorNode(Node):
