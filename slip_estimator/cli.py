@@ -75,7 +75,7 @@ COMMANDS = {
     'evaluate': _lazy('slip_estimator.report', 'evaluate_main'),
     'import-pathfinder': _lazy('slip_estimator.report', 'import_main'),
     'bench': _lazy('slip_estimator.bench', 'bench_main'),
-    'validate': _lazy('slip_estimator.validation', 'validate_main'),
+    'validate': _lazy('slip_estimator.validation.cli', 'validate_main'),
     'default-config': _default_config,
 }
 

@@ -21,7 +21,7 @@ def study(tmp_path_factory):
     """The reduced study, run once for the module."""
     mat_or_skip('test17run')
     pytest.importorskip('h5py')
-    from slip_estimator.validation import run_study
+    from slip_estimator.validation.study import run_study
 
     work = tmp_path_factory.mktemp('validate')
     return run_study(DATA_DIR, work / 'work', configs=CONFIGS, logs=('test17run',),
@@ -85,7 +85,9 @@ def test_core_level_evidence(study) -> None:
 
 
 def test_report_and_figures(study) -> None:
-    from slip_estimator.validation import COMMAND, render_markdown, write_figures
+    from slip_estimator.validation.configs import COMMAND
+    from slip_estimator.validation.figures import write_figures
+    from slip_estimator.validation.markdown import render_markdown
 
     st, work = study
     md = work / 'docs' / 'validation.md'
@@ -106,3 +108,19 @@ def test_report_and_figures(study) -> None:
     assert all(r.count('|') == n_cols for r in rows)
     for p in figs.values():
         assert p.exists() and p.stat().st_size < 200_000
+
+
+def test_saved_study_renders_the_same_report(study) -> None:
+    """The study saved as JSON and loaded back renders the identical report (every number
+    comes from the result object); a changed metric changes the report."""
+    from slip_estimator.validation.markdown import render_markdown
+    from slip_estimator.validation.study import Study
+
+    st, work = study
+    md = work / 'docs' / 'validation.md'
+    st.save(work / 'study.json')
+    loaded = Study.load(work / 'study.json')
+    assert render_markdown(loaded, {}, md) == render_markdown(st, {}, md)
+    assert isinstance(loaded.results[0].series['odom_t'], np.ndarray)
+    loaded.results[0].metrics['slip_mae'] += 0.5
+    assert render_markdown(loaded, {}, md) != render_markdown(st, {}, md)
