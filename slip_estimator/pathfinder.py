@@ -471,9 +471,10 @@ def pathfinder_params(log: PathfinderLog, heading_deg: float | None = None,
 
 
 def _stamp(msg_header, t_s: float) -> int:
+    from slip_estimator.ros.convert import ns_to_stamp
+
     ns = round(t_s * 1e9)
-    msg_header.stamp.sec = ns // 1_000_000_000
-    msg_header.stamp.nanosec = ns % 1_000_000_000
+    msg_header.stamp = ns_to_stamp(ns)
     return ns
 
 

@@ -9,7 +9,9 @@ can fail.
 import numpy as np
 import pytest
 
-from slip_estimator.effects import Effects, run_core as run_core_data, simulation_data
+from slip_estimator.effects import Effects, with_effects
+from slip_estimator.effects import run_core as run_core_data
+from slip_estimator.streams import from_simulation
 from slip_estimator.evaluation import evaluate_slip
 from slip_estimator.sim import mixed_scenario, short_scenario, simulate
 from slip_estimator.sim.bag import sim_params
@@ -21,7 +23,7 @@ def run_core(seed: int, effects: Effects = Effects(), scenario=short_scenario, *
     (estimated class, stationary truth) pairs."""
     r = simulate(scenario(seed))
     p = sim_params(r).replace(**overrides)
-    est, out, odo = run_core_data(p, simulation_data(r, p).with_effects(effects))
+    est, out, odo = run_core_data(p, with_effects(from_simulation(r, p), effects))
     v_true = np.interp(odo[:, 0], r.stamps_ns(r.imu_t_s), r.v_ob_b[:, 0])
     moving = np.interp(odo[:, 0], r.stamps_ns(r.imu_t_s), r.speed_mps) > 0.05
     res = evaluate_slip([o.stamp_ns for o in out], [o.slip_ratio for o in out],
@@ -34,7 +36,7 @@ def _at_rest_alarms(seed: int) -> int:
     """Slip warnings (class >= 2) while body and wheels have been still for a second."""
     r = simulate(short_scenario(seed))
     p = sim_params(r)
-    _, out, _ = run_core_data(p, simulation_data(r, p))
+    _, out, _ = run_core_data(p, from_simulation(r, p))
     still = (np.abs(r.wheel_speed_true_mps) < 1e-3) & \
         (np.abs(r.rim_speed_true_mps).max(axis=1) < 1e-3)
     t0 = r.stamps_ns(r.wheel_t_s)[0]

@@ -10,7 +10,8 @@ import pytest
 
 from slip_estimator.core.alignment import gravity_specific_force, level
 from slip_estimator.core.frames import rpy_to_dcm
-from slip_estimator.effects import run_core, simulation_data
+from slip_estimator.effects import run_core
+from slip_estimator.streams import from_simulation
 from slip_estimator.sim import short_scenario, simulate
 from slip_estimator.sim.bag import sim_params
 
@@ -33,7 +34,7 @@ def test_levelling_in_motion_removes_the_wheel_derived_acceleration():
 def _joined_in_motion(t_join_s: float):
     r = simulate(short_scenario(0))
     p = sim_params(r)
-    d = simulation_data(r, p)
+    d = from_simulation(r, p)
     t0 = d.imu_ns[0] + int(t_join_s * 1e9)
     keep_imu, keep_wheel = d.imu_ns >= t0, d.wheel_ns >= t0
     joined = dataclasses.replace(d, imu_ns=d.imu_ns[keep_imu], f_ib_b=d.f_ib_b[keep_imu],
@@ -103,7 +104,7 @@ def test_non_rep145_imus_are_named_and_not_aligned_on(scale, rotate_deg, expecte
     pose from the wheels alone (degraded mode)."""
     r = simulate(short_scenario(0))
     p = sim_params(r)
-    d = simulation_data(r, p)
+    d = from_simulation(r, p)
     f = d.f_ib_b * scale if scale else d.f_ib_b - np.median(d.f_ib_b[:500], axis=0)
     f = f @ rpy_to_dcm(math.radians(rotate_deg), 0.0, 0.0).T
     cut = d.imu_ns < d.imu_ns[0] + int(20e9)
@@ -132,7 +133,7 @@ def test_other_imu_rates_align_and_estimate(rate_imu_hz, rate_wheel_hz):
                                     rate_truth_hz=rate_wheel_hz)
     r = simulate(cfg)
     p = sim_params(r)
-    est, out, odo = run_core(p, simulation_data(r, p))
+    est, out, odo = run_core(p, from_simulation(r, p))
     assert est.stationary.window_samples == round(p.stationary_window_s * rate_imu_hz)
     assert (odo[0, 0] - r.stamps_ns(r.imu_t_s)[0]) * 1e-9 < 5.0
     moving = [o for o in out if o.slip_class > 0]
@@ -150,7 +151,7 @@ def test_a_noisy_consumer_imu_still_finds_its_stops():
                               gyro_noise_density_rps_rthz=1.2e-3)
     r = simulate(base.replace(imu=imu))
     p = sim_params(r)
-    est, out, odo = run_core(p, simulation_data(r, p))
+    est, out, odo = run_core(p, from_simulation(r, p))
     assert est.stationary.rest_std is not None
     assert est.stationary.thresholds()[1] > p.stationary_gyro_std
     assert est.counters['zupt'] > 50 and est.counters['zaru'] > 50
@@ -168,7 +169,7 @@ def test_consumer_imu_at_30_hz_joined_while_moving():
     cfg = cfg.replace(gnss=dataclasses.replace(cfg.gnss, rate_hz=10.0))
     r = simulate(cfg)
     p = sim_params(r)
-    d = simulation_data(r, p)
+    d = from_simulation(r, p)
     t0 = d.imu_ns[0] + int(22e9)
     ki, kw = d.imu_ns >= t0, d.wheel_ns >= t0
     d = dataclasses.replace(d, imu_ns=d.imu_ns[ki], f_ib_b=d.f_ib_b[ki],
@@ -193,7 +194,7 @@ def test_skid_steer_effective_track_width_is_estimated(factor):
     cfg = base.replace(rover=dataclasses.replace(base.rover, effective_track_factor=factor))
     r = simulate(cfg)
     p = sim_params(r)
-    est, _, _ = run_core(p, simulation_data(r, p))
+    est, _, _ = run_core(p, from_simulation(r, p))
     left = np.array(WHEEL_IS_LEFT)
     rims = r.rim_speed_true_mps
     diff = rims[:, ~left].mean(axis=1) - rims[:, left].mean(axis=1)
@@ -211,7 +212,7 @@ def test_without_wheels_the_ins_runs_and_slip_is_stale_with_the_reason():
     the reason in the health message."""
     r = simulate(short_scenario(0))
     p = sim_params(r)
-    d = simulation_data(r, p)
+    d = from_simulation(r, p)
     d = dataclasses.replace(d, wheel_ns=d.wheel_ns[:0], rim_mps=d.rim_mps[:0])
     est, out, odo = run_core(p, d)
     assert est.aligned and len(odo) > 0 and np.isfinite(odo).all()

@@ -2,7 +2,8 @@
 import numpy as np
 
 from slip_estimator.core.diagnosis import ResidualMonitor
-from slip_estimator.effects import Effects, run_core, simulation_data
+from slip_estimator.effects import Effects, run_core, with_effects
+from slip_estimator.streams import from_simulation
 from slip_estimator.sim import short_scenario, simulate
 from slip_estimator.sim.bag import sim_params
 
@@ -53,7 +54,7 @@ def test_undeclared_wheel_radius_error_is_reported_by_the_estimator():
     segment then shows about 0.1 more slip and the health message names the radius."""
     r = simulate(short_scenario(0))
     p = sim_params(r)
-    est, _, _ = run_core(p, simulation_data(r, p).with_effects(Effects(wheel_radius_error=0.1)))
+    est, _, _ = run_core(p, with_effects(from_simulation(r, p), Effects(wheel_radius_error=0.1)))
     assert est.monitor.held_slip_count >= 2
     assert est.monitor.held_slip_mean > 0.1
     assert 'wheel radius' in est.health().message

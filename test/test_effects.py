@@ -19,9 +19,11 @@ from realdata import mat_or_skip
 from test_accuracy import run_core
 
 from slip_estimator.effects import (TEST17RUN_WINDOWS, UNDECLARED_EFFECTS, Effects,
-                                     run_core as run_core_data, score_on_log, simulation_data)
+                                     run_core as run_core_data, score_on_log, with_effects)
 from slip_estimator.sim import mixed_scenario, short_scenario, simulate
 from slip_estimator.sim.bag import sim_params
+from slip_estimator.streams import from_simulation
+
 
 @functools.lru_cache(maxsize=1)
 def _test17run():
@@ -85,13 +87,14 @@ def test_undeclared_radius_error_on_the_real_log_is_named_in_the_health_message(
 
 def test_effects_are_applied_as_declared():
     """The effect helpers themselves: rotation, scale, stamp shift and windows."""
-    from slip_estimator.effects import SensorData, window_factor
+    from slip_estimator.effects import window_factor
+    from slip_estimator.streams import SensorData
 
     t = np.array([0.0, 1.0, 2.0, 3.0])
     assert window_factor(t, ((1.0, 3.0, 2.0),)).tolist() == [1.0, 2.0, 2.0, 1.0]
     d = SensorData(np.array([0]), np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 0.0, 1.0]]),
                    np.array([10]), np.ones((1, 4)))
-    e = d.with_effects(Effects((0.0, 0.0, 90.0), 0.1, 0.5, 0.2))
+    e = with_effects(d, Effects((0.0, 0.0, 90.0), 0.1, 0.5, 0.2))
     assert np.allclose(e.f_ib_b, [[0.0, 1.0, 0.0]]) and np.allclose(e.omega_ib_b, [[0, 0, 1.1]])
     assert e.wheel_ns.tolist() == [10 + 500_000_000] and np.allclose(e.rim_mps, 1.2)
 
@@ -102,9 +105,9 @@ def test_undeclared_wheel_timestamp_offset_is_named_in_the_health_message(offset
     wheel stamps, which the declared wheel_latency_s does not explain."""
     r = simulate(short_scenario(0))
     p = sim_params(r)
-    clean, _, _ = run_core_data(p, simulation_data(r, p))
+    clean, _, _ = run_core_data(p, from_simulation(r, p))
     shifted, _, _ = run_core_data(
-        p, simulation_data(r, p).with_effects(Effects(wheel_time_offset_s=offset_s)))
+        p, with_effects(from_simulation(r, p), Effects(wheel_time_offset_s=offset_s)))
     assert 'wheel stamps' not in clean.health().message
     # (the declared latency is the encoders' half period; with wheel-rate control the
     # differential also scales with the slip in the turns, which moves the peak by 30 ms)
@@ -118,12 +121,12 @@ def test_real_log_wheel_lag_is_measured_online():
     (offline, over the whole log: 0.085 s; the lag grows during the log, see
     docs/validation.md), which the imported parameters do not declare."""
     from slip_estimator import pathfinder as pf
-    from slip_estimator.effects import pathfinder_data
+    from slip_estimator.streams import from_pathfinder
 
     pytest.importorskip('h5py')
     log = pf.read_pathfinder_mat(mat_or_skip('s5t1'))
     params = pf.pathfinder_params(log)
-    est, _, _ = run_core_data(params, pathfinder_data(log, params), odometry_every=10 ** 9)
+    est, _, _ = run_core_data(params, from_pathfinder(log, params), odometry_every=10 ** 9)
     assert est.timing.correlation > 0.8
     assert 0.05 < est.timing.lag_s < 0.25
     assert 'wheel stamps' in est.health().message
@@ -136,16 +139,16 @@ def test_turning_real_log_reads_injected_slip_inside_each_window():
     median slip read must match that truth."""
     from slip_estimator import pathfinder as pf
     from slip_estimator.core.slip import slip_ratio
-    from slip_estimator.effects import pathfinder_data
+    from slip_estimator.streams import from_pathfinder
 
     pytest.importorskip('h5py')
     log = pf.read_pathfinder_mat(mat_or_skip('s5t1'))
     params = pf.pathfinder_params(log)
     t0_ns = round(float(log.imu_t_s[0]) * 1e9)
     windows = ((45.0, 55.0, 3.0), (70.0, 85.0, 1.4), (100.0, 110.0, 2.2), (125.0, 135.0, 5.0))
-    clean = pathfinder_data(log, params)
+    clean = from_pathfinder(log, params)
     _, plain, _ = run_core_data(params, clean, odometry_every=10 ** 9)
-    _, injected, _ = run_core_data(params, clean.with_effects(Effects(), windows, t0_ns),
+    _, injected, _ = run_core_data(params, with_effects(clean, Effects(), windows, t0_ns),
                                    odometry_every=10 ** 9)
     reference = {o.stamp_ns: o.body_speed_mps for o in plain if o.slip_class > 0}
     for start, end, factor in windows:
@@ -163,7 +166,8 @@ def test_body_side_injection_is_what_the_imu_sees():
     """Closed form: the forward specific force changes by minus the derivative of the speed
     deficit, so its integral is minus the deficit; nothing changes outside the windows; the
     GNSS track moves back by the distance not travelled."""
-    from slip_estimator.effects import SensorData, inject_body_slip, shift_track
+    from slip_estimator.effects import inject_body_slip, shift_track
+    from slip_estimator.streams import SensorData
 
     t_s = np.arange(0.0, 30.0, 0.004)
     n = len(t_s)
@@ -227,7 +231,7 @@ def test_history_follows_corrections_for_delayed_wheel_samples():
 
     r = simulate(short_scenario(0))
     p = sim_params(r)
-    est, _, _ = run_core_data(p, simulation_data(r, p), odometry_every=10 ** 9)
+    est, _, _ = run_core_data(p, from_simulation(r, p), odometry_every=10 ** 9)
     past = est.stamp_ns - 100_000_000
     v_before, _, free_before, _ = est._history_at(past)
     dx = np.zeros(15)
@@ -246,7 +250,7 @@ def test_free_speed_excludes_what_the_wheel_aid_did():
 
     r = simulate(short_scenario(0))
     p = sim_params(r)
-    est, _, _ = run_core_data(p, simulation_data(r, p), odometry_every=10 ** 9)
+    est, _, _ = run_core_data(p, from_simulation(r, p), odometry_every=10 ** 9)
     dx = np.zeros(15)
     dx[3:6] = 0.05 * est.state.C_b_n[:, 0]
     dx[0:3] = 0.01 * est.state.C_b_n[:, 1]  # a 10 mrad pitch: 0.1 m/s^2 of gravity along x

@@ -40,6 +40,7 @@ from slip_estimator.core.planet import (
 )
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.types import SlipEstimate
+from slip_estimator.streams import feed, from_simulation, records
 
 # --- decimated propagation vs the reference path ---------------------------------------------
 # Tolerances of covariance_decimation = 10 against 1. Observed on this drive: body speed
@@ -53,36 +54,28 @@ MOVING_RIM_MPS = 0.1
 CLASS_AGREEMENT = 0.98
 
 
-def _slip_estimates(params, imu, wheels) -> dict[int, SlipEstimate]:
-    from slip_estimator.bench import feed
+def _slip_estimates(params, recs) -> dict[int, SlipEstimate]:
+    return {e.stamp_ns: e for e in feed(SlipEstimator(params), recs)}
 
-    out: list[SlipEstimate] = []
 
-    class Recording(SlipEstimator):
-        def add_imu(self, sample):
-            res = super().add_imu(sample)
-            out.extend(res)
-            return res
+def _simulated(scenario, duration_s: float):
+    """Parameters and core records of a simulated drive."""
+    from slip_estimator.sim import simulate
+    from slip_estimator.sim.bag import sim_params
 
-        def add_wheel(self, sample):
-            res = super().add_wheel(sample)
-            out.extend(res)
-            return res
-
-    feed(Recording(params), imu, wheels)
-    return {e.stamp_ns: e for e in out}
+    result = simulate(scenario.replace(duration_s=duration_s))
+    params = sim_params(result)
+    return params, list(records(from_simulation(result, params)))
 
 
 @pytest.fixture(scope='module')
 def decimated_and_reference():
-    from slip_estimator.bench import drive_from_sim, drive_records
-    from slip_estimator.sim import short_scenario, simulate
+    from slip_estimator.sim import short_scenario
 
-    drive = drive_from_sim(simulate(short_scenario(0).replace(duration_s=64.0)))
-    imu, wheels = drive_records(drive)
-    assert drive.params.covariance_decimation == 10
-    fast = _slip_estimates(drive.params, imu, wheels)
-    reference = _slip_estimates(drive.params.replace(covariance_decimation=1), imu, wheels)
+    params, recs = _simulated(short_scenario(0), 64.0)
+    assert params.covariance_decimation == 10
+    fast = _slip_estimates(params, recs)
+    reference = _slip_estimates(params.replace(covariance_decimation=1), recs)
     return fast, reference
 
 
@@ -323,29 +316,27 @@ def odometry_matrices(est: SlipEstimator):
 def test_odometry_equals_the_matrix_formulas():
     """odometry() on floats (scaled-permutation covariance, Shepperd quaternion) against the
     matrix formulas, with a lever arm, along a simulated drive: equal to round-off."""
-    from slip_estimator.bench import drive_from_sim, drive_records
-    from slip_estimator.sim import short_scenario, simulate
+    from slip_estimator.sim import short_scenario
 
-    drive = drive_from_sim(simulate(short_scenario(2).replace(duration_s=30.0)))
-    params = drive.params.replace(imu_to_base_xyz=(0.12, -0.05, 0.3))
-    imu, wheels = drive_records(drive)
+    params, recs = _simulated(short_scenario(2), 30.0)
+    params = params.replace(imu_to_base_xyz=(0.12, -0.05, 0.3))
     est = SlipEstimator(params)
-    j, checked = 0, 0
-    for k, s in enumerate(imu):
-        while j < len(wheels) and wheels[j].stamp_ns < s.stamp_ns:
-            est.add_wheel(wheels[j])
-            j += 1
-        est.add_imu(s)
-        if k % 97 or not est.aligned:
-            continue
+    count = [0, 0]  # IMU samples, checked
+
+    def check(_sample) -> None:
+        count[0] += 1
+        if (count[0] - 1) % 97 or not est.aligned:
+            return
         odo = est.odometry()
         p, q, v, w, pose, twist = odometry_matrices(est)
         for fast, ref in ((odo.p_ob_o, p), (odo.q_ob_wxyz, q),
                           (odo.v_ob_b, v), (odo.omega_ob_b, w),
                           (odo.pose_covariance, pose), (odo.twist_covariance, twist)):
             np.testing.assert_allclose(fast, ref, rtol=1e-12, atol=1e-14 * np.abs(ref).max())
-        checked += 1
-    assert checked > 40
+        count[1] += 1
+
+    feed(est, recs, check)
+    assert count[1] > 40
 
 
 def test_quaternion_of_every_branch():
@@ -472,13 +463,13 @@ def test_text_is_finite_agrees_with_float():
 
 
 def test_slot_built_messages_equal_the_constructed_ones(monkeypatch):
-    """convert.build writes message slots directly; every output converter gives the same
+    """msgbuild.build writes message slots directly; every output converter gives the same
     message (equal, same repr, same bytes) as through the generated constructors."""
     from rclpy.serialization import serialize_message
 
-    from slip_estimator.ros import convert
+    from slip_estimator.ros import convert, msgbuild
 
-    assert convert._FAST_BUILD  # the slot builder is in use on this ROS distribution
+    assert msgbuild.FAST_BUILD  # the slot builder is in use on this ROS distribution
     stamps = (1_234_567_890_123, -1_500_000_000, 0)
 
     def outputs():
@@ -491,7 +482,7 @@ def test_slot_built_messages_equal_the_constructed_ones(monkeypatch):
         return out
 
     fast = outputs()
-    monkeypatch.setattr(convert, '_FAST_BUILD', False)
+    monkeypatch.setattr(msgbuild, 'FAST_BUILD', False)
     reference = outputs()
     assert len(fast) == len(reference)
     for a, b in zip(fast, reference):

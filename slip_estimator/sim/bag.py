@@ -46,8 +46,9 @@ ALL_TOPICS = (TOPIC_IMU, TOPIC_JOINTS, TOPIC_WHEEL_ODOM, TOPIC_GNSS, TOPIC_TRUTH
 
 
 def _stamp(msg_header: object, stamp_ns: int) -> None:
-    msg_header.stamp.sec = int(stamp_ns // 1_000_000_000)  # type: ignore[attr-defined]
-    msg_header.stamp.nanosec = int(stamp_ns % 1_000_000_000)  # type: ignore[attr-defined]
+    from slip_estimator.ros.convert import ns_to_stamp
+
+    msg_header.stamp = ns_to_stamp(stamp_ns)  # type: ignore[attr-defined]
 
 
 def _yaw_quat_wxyz(yaw: float) -> tuple[float, float, float, float]:

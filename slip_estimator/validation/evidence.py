@@ -221,12 +221,13 @@ def release_scatter(log: Any, params: Params, period_s: float = 3.0, release_s: 
     """
     from slip_estimator import pathfinder as pf
     from slip_estimator.core.estimator import SlipEstimator
-    from slip_estimator.effects import pathfinder_data, run_core
+    from slip_estimator.effects import run_core
+    from slip_estimator.streams import from_pathfinder
     from slip_estimator.evaluation import gnss_velocity_enu
 
     t0 = float(log.imu_t_s[0])
     p_enu = pf.gnss_enu(log)
-    data = pathfinder_data(log, params)
+    data = from_pathfinder(log, params)
     t_end = pf.motion_interval(log)[1] - t0 - release_s - 1.0
     rows = []
     for first in starts_s:

@@ -143,6 +143,7 @@ def read_diagnostics(output_bag: str | Path) -> dict[str, float]:
     survive filter resets.
     """
     from slip_estimator.bagio import read_messages
+    from slip_estimator.report import number
 
     nis: dict[str, list[float]] = {}
     last: dict[str, str] = {}
@@ -154,7 +155,7 @@ def read_diagnostics(output_bag: str | Path) -> dict[str, float]:
             last.update(kv)
             for k, v in kv.items():
                 if k.startswith('nis_mean_'):
-                    x = _num(v)
+                    x = number(v)
                     if math.isfinite(x):
                         nis.setdefault(k[len('nis_mean_'):], []).append(x)
     out = {f'nis_{k}': float(np.mean(v)) for k, v in nis.items()}
@@ -162,7 +163,7 @@ def read_diagnostics(output_bag: str | Path) -> dict[str, float]:
         out.setdefault(f'nis_{k}', float('nan'))
     for k in ('divergence_resets', 'recoveries', 'resets', 'covariance_repairs', 'gated',
               'zupt', 'zaru', 'nhc', 'wheel', 'imu_gaps', 'node_resets'):
-        out[f'n_{k}'] = _num(last.get(k, 'nan'))
+        out[f'n_{k}'] = number(last.get(k, 'nan'))
     return out
 
 
@@ -336,13 +337,6 @@ def _decode(d: dict[str, Any]) -> Any:
     if '__tuple__' in d:
         return tuple(d['__tuple__'])
     return d
-
-
-def _num(text: Any) -> float:
-    try:
-        return float(text)
-    except (TypeError, ValueError):
-        return float('nan')
 
 
 def run_study(data_dir: Path = DEFAULT_DATA_DIR, work_dir: Path | None = None,
