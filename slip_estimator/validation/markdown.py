@@ -241,6 +241,22 @@ def _delta(study: Study, a: str, b: str, metric: str, log: str = RTK_LOG,
     return f'{_f(ra.metrics.get(metric), d)} -> {_f(rb.metrics.get(metric), d)}'
 
 
+_V_RMSE = ('forward-speed RMSE', 'v_rmse', ' m/s')
+_POS_FINAL = ('final position error', 'pos_final_m', ' m', 2)
+_NHC_NIS = ('NHC NIS', 'nis_nhc', '', 2)
+
+
+def _changes(study: Study, a: str, b: str, *items: tuple, log: str = RTK_LOG,
+             variant: str = 'plain') -> str:
+    """'label a -> b unit, ...' for items (label, metric[, unit[, digits]])."""
+    out = []
+    for label, metric, *rest in items:
+        unit = rest[0] if rest else ''
+        d = rest[1] if len(rest) > 1 else 3
+        out.append(f'{label} {_delta(study, a, b, metric, log, variant, d)}{unit}')
+    return ', '.join(out)
+
+
 def _slip_cell(m: dict[str, Any], digits: int, extra: str, tail: str) -> str:
     """'balanced (recall medium / high / extreme<extra>), F1 f1, <tail>' of one run."""
     rec = m['recall']
@@ -549,14 +565,10 @@ def _effect_b(page: Page) -> list[str]:
     """Evidence for B: vibration-aware process noise."""
     study = page.study
     fig = page.fig
-    lines: list[str] = []
-    lines += [
+    lines = [
         '### B: vibration-aware process noise', '',
-        (f'On test17run forward-speed RMSE {_delta(study, "A", "B", "v_rmse")} m/s, final position '
-        f'error {_delta(study, "A", "B", "pos_final_m", d=2)} m, NHC NIS '
-        f'{_delta(study, "A", "B", "nis_nhc", d=2)}; on s5t1 final position error '
-        f'{_delta(study, "A", "B", "pos_final_m", log="s5t1", d=2)} m, NHC NIS '
-        f'{_delta(study, "A", "B", "nis_nhc", log="s5t1", d=2)}. '
+        ('On test17run ' + _changes(study, 'A', 'B', _V_RMSE, _POS_FINAL, _NHC_NIS)
+         + '; on s5t1 ' + _changes(study, 'A', 'B', _POS_FINAL, _NHC_NIS, log='s5t1') + '. '
         'The vibration term widens Q while driving (the IMU window spread is an order of '
         'magnitude above the datasheet noise), which makes the filter trust the '
         'pseudo-measurements more and the INS less; it cannot make the forward velocity '
@@ -570,16 +582,14 @@ def _effect_c(page: Page) -> list[str]:
     """Evidence for C: the hold-mode wheel aid."""
     study = page.study
     fig = page.fig
-    lines: list[str] = []
-    lines += [
+    lines = [
         '### C: hold-mode wheel aid (first design)', '',
-        (f'test17run forward-speed RMSE {_delta(study, "B", "C", "v_rmse")} m/s, final position '
-        f'error {_delta(study, "B", "C", "pos_final_m", d=2)} m, low-class recall / balanced '
-        f'accuracy {_delta(study, "B", "C", "balanced_accuracy")}; injected: balanced accuracy '
-        f'{_delta(study, "B", "C", "balanced_accuracy", variant="injected")}, significant-slip '
-        f'F1 {_delta(study, "B", "C", "sig_f1", variant="injected", d=2)}, slip MAE '
-        f'{_delta(study, "B", "C", "slip_mae", variant="injected")}; s5t1 final position error '
-        f'{_delta(study, "B", "C", "pos_final_m", log="s5t1", d=2)} m. '
+        ('test17run ' + _changes(study, 'B', 'C', _V_RMSE, _POS_FINAL,
+                                 ('low-class recall / balanced accuracy', 'balanced_accuracy'))
+         + '; injected: ' + _changes(study, 'B', 'C', ('balanced accuracy', 'balanced_accuracy'),
+                                     ('significant-slip F1', 'sig_f1', '', 2),
+                                     ('slip MAE', 'slip_mae'), variant='injected')
+         + '; s5t1 ' + _changes(study, 'B', 'C', _POS_FINAL, log='s5t1') + '. '
         + ('This is the one effect that changes the picture: ' if _largest_step(study) == 'C'
            else 'Not the largest step on these logs (tables above); still, ')
         + 'without a forward-velocity '
