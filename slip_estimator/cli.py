@@ -74,7 +74,7 @@ COMMANDS = {
     'replay': _lazy('slip_estimator.replay', 'replay_main'),
     'evaluate': _lazy('slip_estimator.report', 'evaluate_main'),
     'import-pathfinder': _lazy('slip_estimator.report', 'import_main'),
-    'bench': _lazy('slip_estimator.bench', 'bench_main'),
+    'bench': _lazy('slip_estimator.bench.cli', 'bench_main'),
     'validate': _lazy('slip_estimator.validation.cli', 'validate_main'),
     'default-config': _default_config,
 }

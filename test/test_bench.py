@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 
-from slip_estimator.bench import SECTIONS, bench_main
+from slip_estimator.bench.cli import SECTIONS, bench_main
 
 TINY = ['--repeats', '1', '--core-duration-s', '12', '--replay-duration-s', '12',
         '--replay-repeats', '1', '--pathfinder', '', '--live-duration-s', '4',

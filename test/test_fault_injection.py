@@ -27,26 +27,23 @@ and arrival-order jitter have their own tests. Runtime about 100 s on the 2-core
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
+from realdata import mat_or_skip
 
-sys.path.insert(0, str(Path(__file__).parent))
-import faults as F  # noqa: E402
-from realdata import mat_or_skip  # noqa: E402
-
-from slip_estimator.bagio import read_messages  # noqa: E402
-from slip_estimator.ros.adapter import (  # noqa: E402
+from slip_estimator.bagio import read_messages
+from slip_estimator.bench import faults as F
+from slip_estimator.ros.adapter import (
     TOPIC_IMU,
     TOPIC_JOINT_STATES,
     TOPIC_ODOMETRY,
     TOPIC_SLIP,
 )
-from slip_estimator.ros.convert import message_is_finite  # noqa: E402
+from slip_estimator.ros.convert import message_is_finite
 
 NS = F.NS
 G_MPS2 = 9.80665
@@ -238,10 +235,10 @@ def test_fault_on_simulated_drive(sim, clean_correct, fault):
     check_finite(outputs, summary)
     # Outputs resume: a known slip class and odometry after the end of the fault (in the
     # stamps of the faulty stream, which a forward jump moved).
-    end_ns = max(F.stamp_ns(m) for t, m, _ in stream if t == TOPIC_IMU) - 15 * NS
+    end_ns = max(F.header_stamp_ns(m) for t, m, _ in stream if t == TOPIC_IMU) - 15 * NS
     known_after = [c for s, c, _ in F.slip_statuses(outputs) if s >= end_ns and c >= 0]
     assert known_after, 'no known slip class in the last 15 s'
-    assert any(t == TOPIC_ODOMETRY and F.stamp_ns(m) >= end_ns for t, m in outputs)
+    assert any(t == TOPIC_ODOMETRY and F.header_stamp_ns(m) >= end_ns for t, m in outputs)
     assert fault.named(sim, outputs), f'/diagnostics does not name {fault.name}: ' \
         f'{F.diagnostic_values(outputs)}'
     faulty = F.correctness(stream, outputs)
@@ -271,7 +268,7 @@ def test_wheel_dropout_reports_stale_not_a_guess(sim, clean_correct):
     for s, c, st in inside:
         assert c == -1 and st.message == 'unknown' and st.level == b'\x03', (sim.s(s), st)
     ratios = [m for t, m in outputs if t == '/slip_estimator/slip_ratio'
-              and start + timeout_ns < F.stamp_ns(m) < end]
+              and start + timeout_ns < F.header_stamp_ns(m) < end]
     assert not ratios
     # Named: the unknown reports are counted and the wheel rate drops in /diagnostics.
     clean_unknown = F.counter(F.diagnostic_values(sim.outputs), 'slip_unknown')
@@ -368,7 +365,7 @@ def pathfinder(tmp_path_factory) -> RealLog:
     log, _, params = import_pathfinder(mat, work / 't17')
     stream = [(m.topic, m.msg, m.log_time_ns)
               for m in read_messages(work / 't17', {TOPIC_IMU, TOPIC_JOINT_STATES})]
-    wheel_ns = np.array([F.stamp_ns(m) for t, m, _ in stream if t == TOPIC_JOINT_STATES])
+    wheel_ns = np.array([F.header_stamp_ns(m) for t, m, _ in stream if t == TOPIC_JOINT_STATES])
     # Wheel stamps lag the motion by 0.1-0.2 s on this log (README): compare with GNSS 0.15 s
     # earlier.
     gt = gnss_slip_truth(wheel_ns, rim_speed_mps(log), log.gnss_t_s, gnss_enu(log),

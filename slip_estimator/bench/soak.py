@@ -1,14 +1,14 @@
 """Soak test: an hour of simulated driving with seeded random faults, through the node adapter.
 
-``python benchmarks/soak.py --minutes 60 --seed 0``   (about 6-8 min wall on 2 cores)
-``python benchmarks/soak.py --minutes 2``             (quick check, well under a minute)
+``python -m slip_estimator.bench.soak --minutes 60 --seed 0``   (about 6-8 min wall on 2 cores)
+``python -m slip_estimator.bench.soak --minutes 2``             (quick check, < 1 min)
 
 Not part of the test suite. The drive is a chain of the simulator's ``default`` scenario (6.5 min
 each, truth seeds ``seed, seed+1, ...``; the last one cut to the requested length), stamps
 continuing from one chunk to the next. Every 45-75 s of data after the first 20 s of a chunk one
 fault is drawn (seeded) from ``FAULT_KINDS`` and injected with the mutators of
-``test/faults.py``. Each chunk is fed in arrival order to TWO adapters: a clean one and the
-faulty one, so every fault has a no-fault baseline over the same window.
+:mod:`slip_estimator.bench.faults`. Each chunk is fed in arrival order to TWO adapters: a clean
+one and the faulty one, so every fault has a no-fault baseline over the same window.
 
 Reported: RSS (VmRSS from /proc/self/status) sampled every simulated minute and its peak;
 per fault kind the number injected and the number detected (the fault's diagnostic counter in
@@ -28,25 +28,22 @@ import sys
 import time
 from collections import Counter, defaultdict
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
+from geometry_msgs.msg import Vector3Stamped
+from sensor_msgs.msg import Imu, JointState
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'test'))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-import faults as F  # noqa: E402
-from geometry_msgs.msg import Vector3Stamped  # noqa: E402
-from sensor_msgs.msg import Imu, JointState  # noqa: E402
-
-from slip_estimator.ros.adapter import (  # noqa: E402
+from slip_estimator.bench import faults as F
+from slip_estimator.bench.machine import proc_rss_mb
+from slip_estimator.ros.adapter import (
     TOPIC_IMU,
     TOPIC_JOINT_STATES,
     SlipEstimatorAdapter,
 )
-from slip_estimator.ros.convert import message_is_finite, ns_to_stamp  # noqa: E402
-from slip_estimator.sim.bag import sim_params  # noqa: E402
-from slip_estimator.sim.rover import simulate  # noqa: E402
-from slip_estimator.sim.scenario import WHEEL_JOINT_NAMES, default_scenario  # noqa: E402
+from slip_estimator.ros.convert import message_is_finite, ns_to_stamp
+from slip_estimator.sim.bag import sim_params
+from slip_estimator.sim.rover import simulate
+from slip_estimator.sim.scenario import WHEEL_JOINT_NAMES, default_scenario
 
 NS = F.NS
 G_MPS2 = 9.80665
@@ -66,15 +63,6 @@ DETECTION_KEY = {
     'imu_flood': '/imu/data rejected non_monotonic',
 }
 """The /diagnostics counter that must rise for each fault (wheel dropout: STALE statuses)."""
-
-
-def rss_mb() -> float:
-    """Resident set size of this process, MB (VmRSS)."""
-    with open('/proc/self/status') as f:
-        for line in f:
-            if line.startswith('VmRSS:'):
-                return int(line.split()[1]) / 1024.0
-    return math.nan
 
 
 def chunk_stream(result, offset_ns: int) -> F.Stream:
@@ -118,7 +106,7 @@ class Injected:
 def _span(stream: F.Stream, start_ns: int, end_ns: int) -> tuple[int, int]:
     """Index range of the contiguous run of messages stamped in ``[start_ns, end_ns)`` (the
     stream is in stamp order there)."""
-    idx = [i for i, it in enumerate(stream) if start_ns <= F.stamp_ns(it[1]) < end_ns]
+    idx = [i for i, it in enumerate(stream) if start_ns <= F.header_stamp_ns(it[1]) < end_ns]
     return (idx[0], idx[-1] + 1) if idx else (0, 0)
 
 
@@ -169,7 +157,7 @@ def feed(adapter: SlipEstimatorAdapter, stream: F.Stream, stats: Counter,
         if rss is not None and topic == TOPIC_IMU:
             n_imu += 1
             if n_imu % 15000 == 0:  # 60 s at 250 Hz
-                rss.append((minute0 + n_imu / 15000.0, rss_mb()))
+                rss.append((minute0 + n_imu / 15000.0, proc_rss_mb()))
         for item in adapter.on_message(topic, msg):
             if not message_is_finite(item[1]):
                 stats['nan_outputs'] += 1
@@ -201,6 +189,54 @@ def recovery_s(clean: tuple, faulty: tuple, end_s: float, limit_s: float) -> flo
     return math.inf
 
 
+def draw_faults(stream: F.Stream, rng: np.random.Generator, t0_ns: int, duration_s: float,
+                chunk: int) -> tuple[F.Stream, list[Injected]]:
+    """The faults of one chunk: every 45-75 s from 20 s, leaving 25 s for recovery."""
+    faults: list[Injected] = []
+    t = 20.0 + float(rng.uniform(0.0, 25.0))
+    while t < duration_s - 25.0:
+        kind = str(rng.choice(FAULT_KINDS))
+        if kind == 'imu_dropout_30s' and t + 30.0 > duration_s - 25.0:
+            kind = 'imu_dropout_0.5s'
+        stream, end = inject(stream, kind, t0_ns, t, rng)
+        faults.append(Injected(kind, t, end, chunk))
+        t = end + float(rng.uniform(45.0, 75.0))
+    return stream, faults
+
+
+@dataclass
+class Score:
+    """Detections, misses and recovery times per fault kind, over all chunks."""
+
+    found: Counter
+    missed: list[Injected]
+    recoveries: dict[str, list[float]]
+
+    def add(self, faults: list[Injected], t0_ns: int, duration_s: float, resets_seen: int,
+            out_fault: F.Outputs, clean_ok: tuple, fault_ok: tuple) -> None:
+        """Score the faults of one chunk."""
+        for k, inj in enumerate(faults):
+            # Stamps of the faulty stream: earlier forward jumps moved them.
+            jumps = sum(10 * NS for f in faults[:k] if f.kind == 'forward_jump_10s')
+            start_ns = t0_ns + int(inj.start_s * NS) + jumps
+            end_ns = t0_ns + int(inj.end_s * NS) + jumps + (
+                10 * NS if inj.kind == 'forward_jump_10s' else 0)
+            if inj.kind == 'backward_jump_60s':
+                # Stamps go back: one node reset per jump (counted over the chunk).
+                if resets_seen > 0:
+                    self.found[inj.kind] += 1
+                    resets_seen -= 1
+                else:
+                    self.missed.append(inj)
+            elif detected(inj.kind, out_fault, start_ns, end_ns):
+                self.found[inj.kind] += 1
+            else:
+                self.missed.append(inj)
+            nxt = faults[k + 1].start_s if k + 1 < len(faults) else duration_s
+            self.recoveries[inj.kind].append(recovery_s(clean_ok, fault_ok, inj.end_s,
+                                                        nxt - inj.end_s - WINDOW_S + 1.0))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
     ap.add_argument('--minutes', type=float, default=60.0, help='simulated driving, min')
@@ -213,10 +249,8 @@ def main(argv: list[str] | None = None) -> int:
     fault_ad: SlipEstimatorAdapter | None = None
     stats: Counter = Counter()
     injected: list[Injected] = []
-    found: Counter = Counter()
-    missed: list[Injected] = []
-    recoveries: dict[str, list[float]] = defaultdict(list)
-    rss_samples: list[tuple[float, float]] = [(0.0, rss_mb())]
+    score = Score(Counter(), [], defaultdict(list))
+    rss_samples: list[tuple[float, float]] = [(0.0, proc_rss_mb())]
     chunk_rss: list[float] = []
     done_s = 0.0
     offset_ns = 1_700_000_000 * NS
@@ -233,61 +267,40 @@ def main(argv: list[str] | None = None) -> int:
         clean_stream = F.tag_truth(chunk_stream(result, offset_ns))
         t0_ns = F.first_stamp_ns(clean_stream)
         duration = cfg.total_duration_s
-        # Faults of this chunk: every 45-75 s from 20 s, leaving 25 s for recovery.
-        stream = clean_stream
-        chunk_faults: list[Injected] = []
-        t = 20.0 + float(rng.uniform(0.0, 25.0))
-        while t < duration - 25.0:
-            kind = str(rng.choice(FAULT_KINDS))
-            if kind == 'imu_dropout_30s' and t + 30.0 > duration - 25.0:
-                kind = 'imu_dropout_0.5s'
-            stream, end = inject(stream, kind, t0_ns, t, rng)
-            chunk_faults.append(Injected(kind, t, end, chunk))
-            t = end + float(rng.uniform(45.0, 75.0))
+        stream, chunk_faults = draw_faults(clean_stream, rng, t0_ns, duration, chunk)
         # Stamps after a forward jump stay shifted: the next chunk continues from the last one.
-        last_ns = max(F.stamp_ns(m) for tp, m, _ in stream if tp == TOPIC_IMU)
+        last_ns = max(F.header_stamp_ns(m) for tp, m, _ in stream if tp == TOPIC_IMU)
         resets_before = fault_ad.resets
         out_clean = feed(clean_ad, clean_stream, stats)
         out_fault = feed(fault_ad, stream, stats, rss_samples, done_s / 60.0)
         resets_seen = fault_ad.resets - resets_before
         clean_ok = F.correctness(clean_stream, out_clean)
         fault_ok = F.correctness(stream, out_fault)
-        for k, inj in enumerate(chunk_faults):
-            # Stamps of the faulty stream: earlier forward jumps moved them.
-            jumps = sum(10 * NS for f in chunk_faults[:k] if f.kind == 'forward_jump_10s')
-            start_ns = t0_ns + int(inj.start_s * NS) + jumps
-            end_ns = t0_ns + int(inj.end_s * NS) + jumps + (
-                10 * NS if inj.kind == 'forward_jump_10s' else 0)
-            if inj.kind == 'backward_jump_60s':
-                # Stamps go back: one node reset per jump (counted over the chunk).
-                if resets_seen > 0:
-                    found[inj.kind] += 1
-                    resets_seen -= 1
-                else:
-                    missed.append(inj)
-            elif detected(inj.kind, out_fault, start_ns, end_ns):
-                found[inj.kind] += 1
-            else:
-                missed.append(inj)
-            nxt = chunk_faults[k + 1].start_s if k + 1 < len(chunk_faults) else duration
-            recoveries[inj.kind].append(recovery_s(clean_ok, fault_ok, inj.end_s,
-                                                   nxt - inj.end_s - WINDOW_S + 1.0))
+        score.add(chunk_faults, t0_ns, duration, resets_seen, out_fault, clean_ok, fault_ok)
         injected += chunk_faults
         del out_clean, out_fault, stream, clean_stream
         gc.collect()
         offset_ns = last_ns + 4_000_000
         done_s += duration
         chunk += 1
-        chunk_rss.append(rss_mb())
+        chunk_rss.append(proc_rss_mb())
         rss_samples.append((done_s / 60.0, chunk_rss[-1]))
         print(f'  chunk {chunk}: {done_s / 60.0:5.1f} min of data, {len(chunk_faults)} faults, '
               f'RSS {rss_samples[-1][1]:.0f} MB, wall {time.perf_counter() - wall0:.0f} s',
               flush=True)
 
-    wall = time.perf_counter() - wall0
+    return report(args.seed, done_s, time.perf_counter() - wall0, injected, score,
+                  stats, rss_samples, chunk_rss, clean_ad, fault_ad)
+
+
+def report(seed: int, done_s: float, wall: float, injected: list[Injected], score: Score,
+           stats: Counter, rss_samples: list[tuple[float, float]], chunk_rss: list[float],
+           clean_ad: SlipEstimatorAdapter, fault_ad: SlipEstimatorAdapter) -> int:
+    """Print the soak figures; exit status 1 on any NaN or undetected fault."""
+    found, missed, recoveries = score.found, score.missed, score.recoveries
     dropped = sum(fault_ad.dropped_non_finite.values()) + sum(clean_ad.dropped_non_finite.values())
     core_errors = sum(n for (_, r), n in fault_ad.rejected.items() if r == 'core_error')
-    print(f'\nsoak: {done_s / 60.0:.1f} min of simulated driving, seed {args.seed}, '
+    print(f'\nsoak: {done_s / 60.0:.1f} min of simulated driving, seed {seed}, '
           f'{len(injected)} faults, wall {wall:.0f} s ({done_s / wall:.1f}x real time for two '
           f'adapters)')
     print('RSS MB by data minute: ' + ', '.join(f'{m:.1f}:{r:.0f}' for m, r in rss_samples))

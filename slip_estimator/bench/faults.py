@@ -1,7 +1,7 @@
 """Fault injection for message streams, and the measurements the fault tests make on replays.
 
 A *stream* is a list of ``(topic, message, log_time_ns)`` in arrival (log-time) order, the
-format of ``test_replay.synthetic_messages``. Every mutator returns a NEW list and never changes
+format of the fault-injection tests and of :mod:`slip_estimator.bench.soak`. Every mutator returns a NEW list and never changes
 the messages of its input (a message it alters is copied first), so one clean stream can be
 reused for many faults. Times are integer nanoseconds of the header stamps (``stamp_ns``);
 windows are half-open ``[start_ns, end_ns)``.
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +39,7 @@ from slip_estimator.ros.adapter import (
     TOPIC_WHEEL_ODOMETRY,
     SlipEstimatorAdapter,
 )
-from slip_estimator.ros.convert import ns_to_stamp, stamp_to_ns
+from slip_estimator.ros.convert import header_stamp_ns, ns_to_stamp
 
 NS = 1_000_000_000
 TOPIC_TRUTH_SLIP = '/truth/slip'
@@ -51,11 +51,6 @@ Outputs = list[tuple[str, Any]]
 
 
 # --- helpers ----------------------------------------------------------------------------------
-def stamp_ns(msg: Any) -> int:
-    """Header stamp of a message, ns."""
-    return stamp_to_ns(msg.header.stamp)
-
-
 def with_stamp(msg: Any, new_stamp_ns: int) -> Any:
     """A copy of ``msg`` with header stamp ``new_stamp_ns``."""
     out = copy.deepcopy(msg)
@@ -64,17 +59,12 @@ def with_stamp(msg: Any, new_stamp_ns: int) -> Any:
 
 
 def _in(msg: Any, start_ns: int, end_ns: int) -> bool:
-    return start_ns <= stamp_ns(msg) < end_ns
-
-
-def topics_of(stream: Stream, topic: str) -> list[Any]:
-    """The messages of one topic, in stream order."""
-    return [m for t, m, _ in stream if t == topic]
+    return start_ns <= header_stamp_ns(msg) < end_ns
 
 
 def first_stamp_ns(stream: Stream, topic: str = TOPIC_IMU) -> int:
     """Stamp of the first message of ``topic``."""
-    return min(stamp_ns(m) for t, m, _ in stream if t == topic)
+    return min(header_stamp_ns(m) for t, m, _ in stream if t == topic)
 
 
 # --- mutators ---------------------------------------------------------------------------------
@@ -158,7 +148,7 @@ def spike(stream: Stream, at_ns: int, accel_mps2: tuple[float, float, float] = (
     out: Stream = []
     left = n_samples
     for t, m, lt in stream:
-        if left and t == TOPIC_IMU and stamp_ns(m) >= at_ns:
+        if left and t == TOPIC_IMU and header_stamp_ns(m) >= at_ns:
             m = copy.deepcopy(m)
             a, w = m.linear_acceleration, m.angular_velocity
             _set_vec(a, (a.x + accel_mps2[0], a.y + accel_mps2[1], a.z + accel_mps2[2]))
@@ -184,8 +174,8 @@ def shift_stamps(stream: Stream, from_ns: int, offset_ns: int,
     (no data lost); negative: a backward jump (the stamps repeat earlier times)."""
     out: Stream = []
     for t, m, lt in stream:
-        if (topics is None or t in topics) and stamp_ns(m) >= from_ns:
-            m = with_stamp(m, stamp_ns(m) + offset_ns)
+        if (topics is None or t in topics) and header_stamp_ns(m) >= from_ns:
+            m = with_stamp(m, header_stamp_ns(m) + offset_ns)
             lt += offset_ns
         out.append((t, m, lt))
     if offset_ns > 0:
@@ -197,7 +187,7 @@ def loop(stream: Stream, at_ns: int, log_gap_ns: int = 10_000_000) -> Stream:
     """A bag played with ``--loop`` that restarts after ``at_ns``: the messages stamped before
     ``at_ns``, then the whole stream again with its ORIGINAL stamps (the clock jumps back by
     ``at_ns`` minus the first stamp). Log times keep increasing."""
-    first = [item for item in stream if stamp_ns(item[1]) < at_ns]
+    first = [item for item in stream if header_stamp_ns(item[1]) < at_ns]
     offset = first[-1][2] + log_gap_ns - stream[0][2]
     return first + [(t, m, lt + offset) for t, m, lt in stream]
 
@@ -211,9 +201,9 @@ def drift(stream: Stream, rate: float, from_ns: int | None = None,
     origin = first_stamp_ns(stream) if from_ns is None else from_ns
     out: Stream = []
     for t, m, lt in stream:
-        if t in topics and stamp_ns(m) >= origin:
-            shift = round((stamp_ns(m) - origin) * rate)
-            m = with_stamp(m, stamp_ns(m) + shift)
+        if t in topics and header_stamp_ns(m) >= origin:
+            shift = round((header_stamp_ns(m) - origin) * rate)
+            m = with_stamp(m, header_stamp_ns(m) + shift)
             lt += shift
         out.append((t, m, lt))
     out.sort(key=lambda item: item[2])
@@ -227,7 +217,7 @@ def flood(stream: Stream, at_ns: int, count: int, topic: str = TOPIC_IMU) -> Str
     done = False
     for t, m, lt in stream:
         out.append((t, m, lt))
-        if not done and t == topic and stamp_ns(m) >= at_ns:
+        if not done and t == topic and header_stamp_ns(m) >= at_ns:
             out.extend([(t, m, lt)] * count)
             done = True
     return out
@@ -279,7 +269,7 @@ def slip_statuses(outputs: Outputs) -> list[tuple[int, int, Any]]:
         if topic == TOPIC_SLIP:
             (status,) = msg.status
             value = key_values(status)['slip_class']
-            rows.append((stamp_ns(msg), -1 if value == 'unknown' else int(value), status))
+            rows.append((header_stamp_ns(msg), -1 if value == 'unknown' else int(value), status))
     return rows
 
 
@@ -297,7 +287,7 @@ def truth_classes(stream: Stream) -> list[tuple[int, float, int]]:
     """(stamp_ns, reference time s, class) of the ``/truth/slip`` messages of ``stream``.
 
     The reference time is ``vector.y`` (see :func:`tag_truth`)."""
-    return [(stamp_ns(m), float(m.vector.y), round(m.vector.z))
+    return [(header_stamp_ns(m), float(m.vector.y), round(m.vector.z))
             for t, m, _ in stream if t == TOPIC_TRUTH_SLIP]
 
 
@@ -309,7 +299,7 @@ def tag_truth(stream: Stream) -> Stream:
     for t, m, lt in stream:
         if t == TOPIC_TRUTH_SLIP:
             m = copy.deepcopy(m)
-            m.vector.y = (stamp_ns(m) - t0) / NS
+            m.vector.y = (header_stamp_ns(m) - t0) / NS
         out.append((t, m, lt))
     return out
 
@@ -354,7 +344,7 @@ def recovery_delay_s(base: tuple[np.ndarray, np.ndarray], fault: tuple[np.ndarra
 
 def diagnostics(outputs: Outputs) -> list[tuple[int, Any]]:
     """(stamp_ns, status) of every ``/diagnostics`` output."""
-    return [(stamp_ns(m), m.status[0]) for t, m in outputs if t == TOPIC_DIAGNOSTICS]
+    return [(header_stamp_ns(m), m.status[0]) for t, m in outputs if t == TOPIC_DIAGNOSTICS]
 
 
 def diagnostic_values(outputs: Outputs, index: int = -1) -> dict[str, str]:
@@ -368,10 +358,3 @@ def counter(values: dict[str, str], key: str) -> int:
         return int(values.get(key, '0'))
     except ValueError:
         return 0
-
-
-def apply_all(stream: Stream, mutators: Iterable[Callable[[Stream], Stream]]) -> Stream:
-    """Apply mutators in order."""
-    for mutate in mutators:
-        stream = mutate(stream)
-    return stream
