@@ -36,11 +36,9 @@ from typing import Any
 import numpy as np
 
 from slip_estimator.core.slip import slip_class_array, slip_ratio_array
-from slip_estimator.core.types import SLIP_CLASS_NAMES, SLIP_CLASS_UPPER_BOUNDS
+from slip_estimator.core.types import SLIP_CLASS_NAMES
 
 N_CLASSES = len(SLIP_CLASS_NAMES)
-SIGNIFICANT_SLIP = SLIP_CLASS_UPPER_BOUNDS[0]
-"""|s| above 0.2 is 'significant' slip (paper sec. 2, drawbar-pull argument)."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -49,11 +47,6 @@ SIGNIFICANT_SLIP = SLIP_CLASS_UPPER_BOUNDS[0]
 # The slip maths is the core's (paper eq. 1; eq. 30 with GNSS truth speed), vectorised.
 slip_ratio = slip_ratio_array
 slip_class = slip_class_array
-
-
-def is_moving(v_body_mps: np.ndarray, v_rim_mps: np.ndarray, threshold_mps: float) -> np.ndarray:
-    """The rover counts as moving when body or rim speed exceeds the threshold."""
-    return (np.abs(v_body_mps) > threshold_mps) | (np.abs(v_rim_mps) > threshold_mps)
 
 
 # --------------------------------------------------------------------------------------------
@@ -448,15 +441,6 @@ def gnss_slip_truth(wheel_stamp_ns: np.ndarray, v_rim_mps: np.ndarray, gnss_t_s:
     cls = np.where(np.isnan(v_fwd), -1, slip_class(s, moving))
     return GnssTruth(np.asarray(wheel_stamp_ns, dtype=np.int64), v_fwd, v_rim, s, cls,
                      projection)
-
-
-def rim_speed_from_joints(names: list[str], rates_rps: np.ndarray, joint_names: list[str],
-                          wheel_radius_m: float) -> np.ndarray:
-    """Mean rim speed of the named wheels, m/s, from joint rates (rows = samples)."""
-    cols = [names.index(n) for n in joint_names if n in names]
-    if not cols:
-        raise ValueError(f'none of {joint_names} in joint states {names}')
-    return wheel_radius_m * np.asarray(rates_rps, dtype=float)[:, cols].mean(axis=1)
 
 
 # --------------------------------------------------------------------------------------------

@@ -131,11 +131,6 @@ class SlipEstimatorAdapter:
         """Accepted parameters waiting for the next reset, if any."""
         return self._pending
 
-    @property
-    def last_imu_stamp_ns(self) -> int | None:
-        """Stamp of the last accepted IMU sample."""
-        return self._last_imu_ns
-
     def request_params(self, params: Params) -> None:
         """Store validated parameters; they take effect at the next :meth:`reset`."""
         self._pending = None if params == self.params else params
