@@ -244,7 +244,7 @@ def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Pat
 
     fig, ax = plt.subplots(figsize=(6, 5))
     if ev.slip is not None:
-        pct = np.nan_tonumber(ev.slip.percent)
+        pct = np.nan_to_num(ev.slip.percent)
         ax.imshow(pct, cmap='Blues', vmin=0, vmax=100)
         for e in range(pct.shape[0]):
             for t in range(pct.shape[1]):
