@@ -171,12 +171,20 @@ def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Pat
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    from slip_estimator.core.types import SLIP_CLASS_NAMES
-
     report_dir.mkdir(parents=True, exist_ok=True)
     files = []
-    t0 = run.est_slip_stamp_ns[0] if len(run.est_slip_stamp_ns) else 0
+    for name, draw in (('trajectory', _trajectory_figure), ('slip_vs_truth', _slip_vs_truth_figure),
+                       ('velocity_error_hist', _velocity_error_hist_figure),
+                       ('confusion_matrix', _confusion_matrix_figure)):
+        fig = draw(run, ev, plt)
+        files.append(report_dir / f'{name}.png')
+        fig.savefig(files[-1], dpi=120)
+        plt.close(fig)
+    return files
 
+
+def _trajectory_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
+    """Estimated and true trajectory in the odom frame."""
     fig, ax = plt.subplots(figsize=(7, 7))
     if ev.truth_p_m is not None:
         tp = ev.truth_p_m
@@ -195,10 +203,12 @@ def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Pat
     ax.grid(True)
     ax.legend()
     ax.set_title('Trajectory (odom frame, ENU)')
-    files.append(report_dir / 'trajectory.png')
-    fig.savefig(files[-1], dpi=120)
-    plt.close(fig)
+    return fig
 
+
+def _slip_vs_truth_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
+    """Slip ratio and speeds over time, estimate against truth."""
+    t0 = run.est_slip_stamp_ns[0] if len(run.est_slip_stamp_ns) else 0
     fig, axs = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     te = (run.est_slip_stamp_ns - t0) * 1e-9
     if ev.gnss_truth is not None:
@@ -229,18 +239,22 @@ def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Pat
     axs[1].set_ylabel('speed [m/s]')
     axs[1].legend()
     axs[1].grid(True)
-    files.append(report_dir / 'slip_vs_truth.png')
-    fig.savefig(files[-1], dpi=120)
-    plt.close(fig)
+    return fig
 
+
+def _velocity_error_hist_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
+    """Histogram of the forward-speed error."""
     fig, ax = plt.subplots(figsize=(6, 4))
     if ev.speed is not None and ev.speed.n:
         ax.hist(ev.speed.errors, bins=50, color='tab:blue')
         ax.set_title(f'forward-speed error: RMSE {ev.speed.rmse:.3f} m/s (n={ev.speed.n})')
     ax.set_xlabel('v_est - v_truth [m/s]')
-    files.append(report_dir / 'velocity_error_hist.png')
-    fig.savefig(files[-1], dpi=120)
-    plt.close(fig)
+    return fig
+
+
+def _confusion_matrix_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
+    """The slip confusion matrix, % of each truth class."""
+    from slip_estimator.core.types import SLIP_CLASS_NAMES
 
     fig, ax = plt.subplots(figsize=(6, 5))
     if ev.slip is not None:
@@ -256,10 +270,7 @@ def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Pat
         ax.set_ylabel('estimated class')
         ax.set_title(f'balanced accuracy {ev.slip.balanced_accuracy:.3f}, '
                      f'coverage {ev.slip.coverage:.3f}')
-    files.append(report_dir / 'confusion_matrix.png')
-    fig.savefig(files[-1], dpi=120)
-    plt.close(fig)
-    return files
+    return fig
 
 
 # --------------------------------------------------------------------------------------------
