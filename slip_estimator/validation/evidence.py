@@ -94,8 +94,9 @@ def lag_curve(log: Any, max_lag_s: float = 0.4, step_s: float = 0.005
               ) -> tuple[np.ndarray, np.ndarray]:
     """Correlation of the gyro yaw rate with the wheel differential rate vs lag: the curve
     whose peak :func:`pathfinder.wheel_imu_lag` returns (same signal, same sign)."""
-    r = log.wheel_rate_rps
-    diff = r[:, 1] + r[:, 3] - r[:, 0] - r[:, 2]
+    from slip_estimator import pathfinder as pf
+
+    diff = pf.wheel_differential_rps(log)
     return _correlation_vs_lag(log, -log.omega_ib_imu[:, 2], diff, max_lag_s, step_s)
 
 
@@ -103,11 +104,11 @@ def lag_over_time(log: Any, window_s: float = 30.0, step_s: float = 15.0,
                   min_turn_rps: float = 0.05) -> dict[str, np.ndarray]:
     """The yaw-rate lag of the wheel stamps in sliding windows (``t`` window start s after the
     first IMU sample, ``lag`` s, ``corr``); windows without turning are left out."""
+    from slip_estimator import pathfinder as pf
     from slip_estimator.core.timing import best_lag
 
     t0 = float(log.imu_t_s[0])
-    r = log.wheel_rate_rps
-    diff = r[:, 1] + r[:, 3] - r[:, 0] - r[:, 2]
+    diff = pf.wheel_differential_rps(log)
     rows = []
     for a in np.arange(0.0, float(log.imu_t_s[-1]) - t0 - window_s / 2, step_s):
         w = (log.wheel_t_s >= t0 + a) & (log.wheel_t_s < t0 + a + window_s)
