@@ -380,7 +380,7 @@ def undeclared_section(rows: list[dict[str, Any]] | None) -> list[str]:
          'the data by `effects.Effects` (the IMU rotated off its declared mounting, the gyro '
          'scaled, the wheel stamps shifted, the rim speeds scaled as by a wrong declared '
          'radius); run through the core (`effects.score_on_log`, the same code as the tests in '
-         '`test/test_effects.py`), truth from RTK. Acceptance levels: balanced accuracy >= 0.80, '
+         '`test/integration/test_effects.py`), truth from RTK. Acceptance levels: balanced accuracy >= 0.80, '
          'medium and high recall >= 0.70, significant-slip F1 >= 0.85, speed RMSE <= 0.05 m/s '
          '(plain log).'), '']
     table = []

@@ -226,11 +226,7 @@ def test_without_wheels_the_ins_runs_and_slip_is_stale_with_the_reason():
 def test_node_publishes_wheel_odometry_for_a_gravity_free_imu():
     """Through the node logic: an IMU with gravity removed gets an ERROR diagnostic naming it,
     and odometry (from the wheels) is still published, finite."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).parent))
-    from test_replay import synthetic_messages, synthetic_params
+    from helpers import synthetic_messages, synthetic_params
 
     from slip_estimator.ros.adapter import SlipEstimatorAdapter
 

@@ -9,27 +9,12 @@ can fail.
 import numpy as np
 import pytest
 
-from slip_estimator.effects import Effects, with_effects
+from helpers import score_sim_drive
+
 from slip_estimator.effects import run_core as run_core_data
 from slip_estimator.streams import from_simulation
-from slip_estimator.evaluation import evaluate_slip
 from slip_estimator.sim import mixed_scenario, short_scenario, simulate
 from slip_estimator.sim.bag import sim_params
-
-
-def run_core(seed: int, effects: Effects = Effects(), scenario=short_scenario, **overrides):
-    """Feed a simulated drive (with optional undeclared effects) through the core in stamp
-    order; return the slip result, the forward-speed RMSE while moving and the per-sample
-    (estimated class, stationary truth) pairs."""
-    r = simulate(scenario(seed))
-    p = sim_params(r).replace(**overrides)
-    est, out, odo = run_core_data(p, with_effects(from_simulation(r, p), effects))
-    v_true = np.interp(odo[:, 0], r.stamps_ns(r.imu_t_s), r.v_ob_b[:, 0])
-    moving = np.interp(odo[:, 0], r.stamps_ns(r.imu_t_s), r.speed_mps) > 0.05
-    res = evaluate_slip([o.stamp_ns for o in out], [o.slip_ratio for o in out],
-                        [o.slip_class for o in out], r.stamps_ns(r.wheel_t_s), r.slip_true,
-                        r.slip_class)
-    return res, float(np.sqrt(np.mean(np.square(odo[moving, 1] - v_true[moving]))))
 
 
 def _at_rest_alarms(seed: int) -> int:
@@ -53,7 +38,7 @@ def _at_rest_alarms(seed: int) -> int:
 def test_slip_accuracy_on_wheel_rate_controlled_drives(seed):
     """Measured on these drives: balanced 0.93-0.95, F1 0.88-0.89, medium/high/extreme recall
     >= 0.94 (the earlier hold mode: balanced 0.71, F1 0.70)."""
-    res, speed_rmse = run_core(seed)
+    res, speed_rmse = score_sim_drive(seed)
     assert res.coverage >= 0.95
     assert res.balanced_accuracy >= 0.90, res.recall
     assert min(res.recall[2:]) >= 0.90, res.recall
@@ -64,7 +49,7 @@ def test_slip_accuracy_on_wheel_rate_controlled_drives(seed):
 @pytest.mark.parametrize('seed', [0, 2])
 def test_slip_accuracy_on_mixed_drives(seed):
     """Body-side and wheel-side slip on one drive (earlier hold mode: balanced 0.38-0.58)."""
-    res, _ = run_core(seed, scenario=mixed_scenario)
+    res, _ = score_sim_drive(seed, scenario=mixed_scenario)
     assert res.coverage >= 0.95
     assert res.balanced_accuracy >= 0.90 and res.significant_f1 >= 0.90, res.recall
 
@@ -76,5 +61,5 @@ def test_no_slip_alarm_at_rest():
 def test_the_papers_method_alone_drifts_on_the_same_drive():
     """Without the wheel aid the forward velocity drifts between stops (vibration, gyro noise)
     and the medium/high classes are lost: the reason for the wheel aid."""
-    res, speed_rmse = run_core(0, wheel_aid='off')
+    res, speed_rmse = score_sim_drive(0, wheel_aid='off')
     assert res.balanced_accuracy < 0.8 and speed_rmse > 0.05

@@ -12,71 +12,14 @@ import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from helpers import T0_NS, synthetic_messages, synthetic_params
 from rosbags.typesys import Stores, get_typestore
-from sensor_msgs.msg import Imu, JointState
 
 from slip_estimator.bagio import BagWriter, bag_topics, message_type_name, read_messages
-from slip_estimator.core.params import Params
 from slip_estimator.paramfile import load_params, save_params
 from slip_estimator.replay import replay_bag, replay_main
 from slip_estimator.ros import adapter as ad
 from slip_estimator.ros.convert import message_is_finite, ns_to_stamp, stamp_to_ns
-
-T0_NS = 1_700_000_000 * 1_000_000_000
-G_MPS2 = 9.80
-WHEEL_RADIUS_M = 0.12
-JOINTS = ('front_left_wheel_joint', 'front_right_wheel_joint',
-          'rear_left_wheel_joint', 'rear_right_wheel_joint')
-
-
-def synthetic_messages(stationary_s: float = 10.0, drive_s: float = 10.0, *,
-                       imu_hz: int = 250, wheel_hz: int = 50, speed_mps: float = 0.4,
-                       accel_mps2: float = 0.2, slip: float = 0.3,
-                       seed: int = 0) -> list[tuple[str, object, int]]:
-    """(topic, message, log_time_ns) of a level, straight drive along base_link x.
-
-    Stationary for ``stationary_s``, then accelerating at ``accel_mps2`` to ``speed_mps``;
-    wheels turn at rim = v / (1 - slip) (paper eq. 1). IMU z up (REP-145: +g at rest), small
-    seeded white noise. Log times lag the stamps (1 ms IMU, 7 ms wheels), so log order and
-    stamp order differ, as in a real recording.
-    """
-    rng = np.random.default_rng(seed)
-    out: list[tuple[str, object, int]] = []
-    total_s = stationary_s + drive_s
-
-    def speed(t: float) -> tuple[float, float]:
-        if t < stationary_s:
-            return 0.0, 0.0
-        v = min(speed_mps, accel_mps2 * (t - stationary_s))
-        return v, (accel_mps2 if v < speed_mps else 0.0)
-
-    for k in range(int(total_s * imu_hz)):
-        t = k / imu_hz
-        _, a = speed(t)
-        msg = Imu()
-        stamp_ns = T0_NS + k * (1_000_000_000 // imu_hz)
-        msg.header.stamp = ns_to_stamp(stamp_ns)
-        msg.header.frame_id = 'imu_link'
-        f = np.array([a, 0.0, G_MPS2]) + rng.normal(0.0, 0.01, 3)
-        w = rng.normal(0.0, 0.001, 3)
-        msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = f
-        msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = w
-        msg.orientation_covariance[0] = -1.0
-        out.append(('/imu/data', msg, stamp_ns + 1_000_000))
-    for k in range(int(total_s * wheel_hz)):
-        t = k / wheel_hz
-        v, _ = speed(t)
-        rim = v / (1.0 - slip) if v > 0.0 else 0.0
-        msg = JointState()
-        stamp_ns = T0_NS + k * (1_000_000_000 // wheel_hz)
-        msg.header.stamp = ns_to_stamp(stamp_ns)
-        msg.name = list(JOINTS)
-        msg.velocity = [rim / WHEEL_RADIUS_M] * 4
-        msg.position = [0.0] * 4
-        out.append(('/joint_states', msg, stamp_ns + 7_000_000))
-    out.sort(key=lambda item: item[2])
-    return out
-
 
 def write_synthetic_bag(path: Path, messages=None, *, sqlite3: bool = False) -> Path:
     """Write ``messages`` (default: :func:`synthetic_messages`) as MCAP or sqlite3 bag."""
@@ -97,12 +40,6 @@ def write_synthetic_bag(path: Path, messages=None, *, sqlite3: bool = False) -> 
         writer.write(conns[topic], log_ns, serialize_message(msg))
     writer.close()
     return path
-
-
-def synthetic_params() -> Params:
-    """Parameters matching the synthetic bag."""
-    return Params(wheel_radius=WHEEL_RADIUS_M, wheel_input='joint_states',
-                  wheel_joint_names=list(JOINTS))
 
 
 def output_stream(bag: Path) -> list[tuple[str, int, bytes]]:

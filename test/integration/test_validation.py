@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from realdata import DATA_DIR, mat_or_skip
+from helpers import DATA_DIR, mat_or_skip
 
 CONFIGS = ('A', 'E')
 

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from realdata import mat_or_skip as _mat
+from helpers import mat_or_skip as _mat
 
 LOGS = ('test17run', 's5t1')
 

@@ -15,8 +15,7 @@ import functools
 
 import numpy as np
 import pytest
-from realdata import mat_or_skip
-from test_accuracy import run_core
+from helpers import mat_or_skip, score_sim_drive
 
 from slip_estimator.effects import (TEST17RUN_WINDOWS, UNDECLARED_EFFECTS, Effects,
                                      run_core as run_core_data, score_on_log, with_effects)
@@ -71,7 +70,7 @@ def test_simulated_slip_accuracy_holds_with_an_undeclared_effect(effects):
     """On the mixed drive (body-side and wheel-side slip). Known limit, measured: on the short
     drive, with its 0.5 rad/s in-place turn, a gyro scale error of 2 % drops the high-slip
     recall to 0.05 (balanced 0.64-0.68)."""
-    res, speed_rmse = run_core(0, effects, scenario=mixed_scenario)
+    res, speed_rmse = score_sim_drive(0, effects, scenario=mixed_scenario)
     assert_meets_the_acceptance_levels(res)
     assert speed_rmse < 0.05
 

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from realdata import mat_or_skip
+from helpers import mat_or_skip
 
 from slip_estimator.bagio import read_messages
 from slip_estimator.bench import faults as F

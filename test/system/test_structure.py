@@ -10,7 +10,7 @@ import yaml
 from slip_estimator.core.params import Params, ParameterError
 from slip_estimator.paramfile import load_params, render_default_config
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
 def test_core_imports_numpy_and_stdlib_only():

@@ -1,8 +1,8 @@
 """The real node over real DDS: a bag's messages in, odometry, slip and diagnostics out.
 
 The node runs in a subprocess (``python -m slip_estimator.ros.node`` / the console script) on
-an isolated ROS domain with LOCALHOST discovery; this test plays the synthetic bag of
-test_replay.py through publishers and listens to every output.
+an isolated ROS domain with LOCALHOST discovery; this test plays the synthetic drive of
+``helpers.synthetic_messages`` through publishers and listens to every output.
 """
 from __future__ import annotations
 
@@ -18,6 +18,7 @@ import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3Stamped
+from helpers import synthetic_messages, synthetic_params
 from nav_msgs.msg import Odometry
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -29,8 +30,6 @@ from sensor_msgs.msg import Imu, JointState
 from slip_estimator.paramfile import save_params
 from slip_estimator.ros.convert import message_is_finite
 
-sys.path.insert(0, str(Path(__file__).parent))
-from test_replay import synthetic_messages, synthetic_params  # noqa: E402
 
 PLAY_SPEED = 2.0
 """Playback speed (x real time): 500 IMU messages/s reach the node."""
