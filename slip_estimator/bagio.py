@@ -1,22 +1,76 @@
-"""rosbag2 reading and writing (MCAP or sqlite3) with real ROS 2 message classes.
+"""Bag reading (rosbag2 MCAP/sqlite3 and ROS 1 ``.bag``) and MCAP writing with ROS 2 classes.
 
 The only module that touches bag files. Messages are (de)serialised with
 ``rclpy.serialization`` so that replay, the simulator and the live node all handle the very same
-message classes; rosbags provides the container format. Timestamps are integer nanoseconds.
+message classes; rosbags provides the container formats. A ROS 1 bag's messages are converted on
+the fly to ROS 2 CDR with rosbags' Jazzy typestore (``ros1_to_cdr``: the ROS 1 header's ``seq``
+dropped; Imu, JointState, Odometry have the same fields otherwise). Timestamps are integer
+nanoseconds. A path that is not a readable bag raises :class:`BagError` with a one-line message
+naming the path and what is wrong.
 """
 from __future__ import annotations
 
 import importlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.rosbag1 import Reader as Reader1
+from rosbags.rosbag1 import ReaderError as Reader1Error
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2 import ReaderError as Reader2Error
 from rosbags.typesys import Stores, get_typestore
 
 _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+ROS1_MAGIC = b'#ROSBAG V2.0'
+
+
+class BagError(Exception):
+    """A path that cannot be read as a bag; the message is one line for the user."""
+
+
+def ros1_bag(path: Path) -> bool:
+    """True for a ROS 1 bag file (its magic line, whatever its suffix)."""
+    if not path.is_file():
+        return False
+    with path.open('rb') as f:
+        return f.read(len(ROS1_MAGIC)) == ROS1_MAGIC
+
+
+def _check_bag_path(path: Path) -> None:
+    """Raise :class:`BagError` for what is plainly not a bag (before rosbags sees it)."""
+    if not path.exists():
+        raise BagError(f'{path}: no such file or folder')
+    if path.is_dir():
+        entries = list(path.iterdir())
+        if not entries:
+            raise BagError(f'{path}: empty folder, not a bag')
+        if not (path / 'metadata.yaml').is_file() and not any(
+                p.suffix in ('.mcap', '.db3') for p in entries):
+            raise BagError(f'{path}: not a rosbag2 bag (no metadata.yaml, .mcap or .db3 in it)')
+    elif path.suffix not in ('.mcap', '.db3', '.bag') and not ros1_bag(path):
+        raise BagError(f'{path}: not a bag (expected a rosbag2 folder, .mcap, .db3 or a '
+                       'ROS 1 .bag)')
+
+
+@contextmanager
+def open_bag(path: str | Path) -> Iterator[Any]:
+    """An open rosbags reader (rosbag2 or ROS 1) for ``path``; :class:`BagError` otherwise."""
+    path = Path(path)
+    _check_bag_path(path)
+    reader = Reader1(path) if ros1_bag(path) else Reader(path)
+    try:
+        reader.open()
+    except (Reader1Error, Reader2Error, OSError, ValueError, KeyError) as exc:
+        raise BagError(f'{path}: cannot read the bag ({str(exc) or type(exc).__name__})'
+                       ) from None
+    try:
+        yield reader
+    finally:
+        reader.close()
 
 
 def message_class(msgtype: str) -> type:
@@ -42,36 +96,48 @@ class BagMessage:
     msg: Any
 
 
-def read_messages(path: str | Path, topics: set[str] | None = None) -> Iterator[BagMessage]:
-    """Yield the messages of a rosbag2 bag (directory, .mcap or .db3) in log-time order.
+def _to_cdr(reader: Any, msgtype: str) -> Callable[[Any], bytes]:
+    """Raw bytes -> ROS 2 CDR for this reader's format."""
+    if isinstance(reader, Reader1):
+        return lambda raw: bytes(_TYPESTORE.ros1_to_cdr(raw, msgtype))
+    return bytes
 
-    Types that are not available as ROS message classes on this machine are skipped.
+
+def read_messages(path: str | Path, topics: set[str] | None = None) -> Iterator[BagMessage]:
+    """Yield the messages of a bag (rosbag2 folder, .mcap, .db3 or ROS 1 .bag) in log-time
+    order.
+
+    Types that are not available as ROS 2 message classes on this machine are skipped.
     """
-    with Reader(Path(path)) as reader:
+    with open_bag(path) as reader:
         conns = [c for c in reader.connections if topics is None or c.topic in topics]
-        classes = {}
+        decode = {}
         for c in conns:
             try:
-                classes[c.id] = message_class(c.msgtype)
+                cls = message_class(c.msgtype)
+                if isinstance(reader, Reader1) and c.msgtype not in _TYPESTORE.types:
+                    continue
             except (ImportError, AttributeError, ValueError):
                 continue
-        conns = [c for c in conns if c.id in classes]
+            decode[c.id] = (cls, _to_cdr(reader, c.msgtype))
+        conns = [c for c in conns if c.id in decode]
         if not conns:
             return
         for conn, log_ns, raw in reader.messages(connections=conns):
+            cls, to_cdr = decode[conn.id]
             yield BagMessage(conn.topic, conn.msgtype, log_ns,
-                             deserialize_message(bytes(raw), classes[conn.id]))
+                             deserialize_message(to_cdr(raw), cls))
 
 
 def bag_topics(path: str | Path) -> dict[str, str]:
     """Mapping topic -> type name of a bag."""
-    with Reader(Path(path)) as reader:
+    with open_bag(path) as reader:
         return {c.topic: c.msgtype for c in reader.connections}
 
 
 def bag_duration_s(path: str | Path) -> float:
     """Duration of a bag from its metadata, s."""
-    with Reader(Path(path)) as reader:
+    with open_bag(path) as reader:
         return reader.duration * 1e-9
 
 

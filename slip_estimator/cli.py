@@ -61,11 +61,22 @@ def _default_config(argv: list[str]) -> int:
     return 0
 
 
-def _lazy(module: str, func: str):
+def _lazy(module: str, func: str, defaults: tuple[tuple[str, str], ...] = ()):
+    """A subcommand run by ``module.func(argv)``, imported on first use; ``defaults`` are
+    (option, path under ``SHARED_DATA``) appended when the user did not give the option."""
     def run(argv: list[str]) -> int:
         import importlib
+        if not {'-h', '--help'} & set(argv):
+            for option, name in defaults:
+                if not any(a == option or a.startswith(option + '=') for a in argv):
+                    argv = [*argv, option, str(SHARED_DATA / name)]
         return getattr(importlib.import_module(module), func)(argv)
     return run
+
+
+SHARED_DATA = Path('..') / 'shared' / 'data' / 'pathfinder'
+"""The real logs, relative to the current folder (a checkout's root): never inside an
+installed package."""
 
 
 COMMANDS = {
@@ -74,8 +85,8 @@ COMMANDS = {
     'replay': _lazy('slip_estimator.replay', 'replay_main'),
     'evaluate': _lazy('slip_estimator.report', 'evaluate_main'),
     'import-pathfinder': _lazy('slip_estimator.report', 'import_main'),
-    'bench': _lazy('slip_estimator.bench.cli', 'bench_main'),
-    'validate': _lazy('slip_estimator.validation.cli', 'validate_main'),
+    'bench': _lazy('slip_estimator.bench.cli', 'bench_main', (('--pathfinder', 's5t1.mat'),)),
+    'validate': _lazy('slip_estimator.validation.cli', 'validate_main', (('--data-dir', ''),)),
     'default-config': _default_config,
 }
 
@@ -97,7 +108,25 @@ def main(argv: list[str] | None = None) -> int:
         print(f"slip-estimator: unknown command '{argv[0]}' (one of: {', '.join(COMMANDS)}; "
               'see slip-estimator --help)', file=sys.stderr)
         return 2
-    return int(COMMANDS[argv[0]](argv[1:]) or 0)
+    try:
+        return int(COMMANDS[argv[0]](argv[1:]) or 0)
+    except ModuleNotFoundError as exc:
+        if exc.name and exc.name.split('.')[0] in ROS_MODULES:
+            print(f'slip-estimator: ROS 2 Jazzy Python package {exc.name!r} not found: source '
+                  '/opt/ros/jazzy/setup.bash, or pip install "slip_estimator[ros]" (the '
+                  'ros-jazzy-* wheels)', file=sys.stderr)
+            return 2
+        if exc.name in OPTIONAL_MODULES:
+            print(f'slip-estimator {argv[0]}: needs {exc.name}: pip install '
+                  f'"slip_estimator[{OPTIONAL_MODULES[exc.name]}]"', file=sys.stderr)
+            return 2
+        raise
+
+
+ROS_MODULES = ('rclpy', 'rcl_interfaces', 'builtin_interfaces', 'std_msgs', 'std_srvs',
+               'sensor_msgs', 'nav_msgs', 'geometry_msgs', 'diagnostic_msgs')
+OPTIONAL_MODULES = {'h5py': 'pathfinder', 'matplotlib': 'plots'}
+"""Modules of the setup.py extras, by extra."""
 
 
 if __name__ == '__main__':

@@ -598,8 +598,36 @@ def evaluate_run(run: RunData, llh0: np.ndarray | None = None,
                      'skid-steer crab in turns')
     else:
         raise ValueError('no truth in the run: neither /truth/slip nor /gnss/fix')
+    valid = follow_data(valid, notes, slip, speed)
     return RunEvaluation(source, slip, speed, traj, valid, tuple(notes), gnss_truth,
                          truth_p, truth_t)
+
+
+SMALL_CLASS_SAMPLES = 30
+"""A truth class with fewer matched samples than this is named in the notes: the balanced
+accuracy (a mean of per-class recalls) rests on it as heavily as on a full class."""
+
+
+def follow_data(valid: dict[str, bool], notes: list[str], slip: SlipResult | None,
+                speed: SpeedResult | None) -> dict[str, bool]:
+    """Validity that also follows the data: no slip figure is valid without a matched
+    estimate/truth pair with both classes known, no speed figure without a compared sample;
+    small truth classes are named in ``notes`` (appended)."""
+    valid = dict(valid)
+    if slip is not None and int(slip.counts.sum()) == 0:
+        valid['slip'] = False
+        notes.append(f'no estimate matched a truth sample with both classes known '
+                     f'({slip.n_matched} matched in time): slip figures are NOT valid')
+    if speed is not None and speed.n == 0:
+        valid['speed'] = False
+        notes.append('no estimate fell inside the speed truth: speed figures are NOT valid')
+    if slip is not None and valid.get('slip'):
+        small = [f'{SLIP_CLASS_NAMES[c]} {int(n)}' for c, n in enumerate(slip.n_truth)
+                 if c >= 1 and 0 < n < SMALL_CLASS_SAMPLES]
+        if small:
+            notes.append('balanced accuracy rests on few samples in class(es): '
+                         + ', '.join(small) + f' (fewer than {SMALL_CLASS_SAMPLES} each)')
+    return valid
 
 
 def format_confusion(result: SlipResult) -> str:

@@ -1,6 +1,8 @@
 """Read and write ROS 2 parameter YAML files (``node: ros__parameters: {...}``) as Params."""
 from __future__ import annotations
 
+import dataclasses
+import fnmatch
 from pathlib import Path
 from typing import Any
 
@@ -11,31 +13,82 @@ from slip_estimator.core.params import ParameterError, Params
 NODE_NAME = 'slip_estimator'
 
 
+NODE_ONLY_PARAMETERS = {'allow_unknown_parameters': False, 'use_sim_time': False}
+"""Parameters of the node itself (not of the estimator): read by the node, ignored by replay."""
+
+
+def read_yaml(path: str | Path) -> Any:
+    """The YAML document of a parameter file; :class:`ParameterError` (one line naming the file
+    and what is wrong) when it cannot be read or parsed."""
+    try:
+        text = Path(path).read_text()
+    except OSError as exc:
+        raise ParameterError(f'{path}: cannot read the parameter file '
+                             f'({exc.strerror or exc})') from None
+    try:
+        return yaml.safe_load(text) or {}
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
+        problem = getattr(exc, 'problem', None) or type(exc).__name__
+        raise ParameterError(f'{path}: YAML syntax error{where}: {problem}') from None
+
+
+def node_sections(doc: Any, node_name: str = NODE_NAME) -> list[str]:
+    """The sections of a parameter document that apply to the node ``node_name`` (a name or a
+    fully qualified name): ``/**``, the name with or without its leading slash, or a wildcard
+    pattern matching it, in file order (rcl merges them in that order)."""
+    fqn = '/' + node_name.lstrip('/')
+    keys = [k for k in doc if isinstance(k, str)] if isinstance(doc, dict) else []
+    return [k for k in keys if fnmatch.fnmatchcase(fqn, '/' + k.lstrip('/'))]
+
+
 def read_param_values(path: str | Path, node_name: str = NODE_NAME) -> dict[str, Any]:
     """Flat parameter mapping for ``node_name`` from a ROS 2 params file.
 
-    Sections ``/**``, ``node_name`` and ``/node_name`` are merged in that order, like rcl does.
+    The sections that apply to the node (:func:`node_sections`) are merged like rcl does. A file
+    with no section for the node is refused, naming the sections it has: a misspelled node name
+    would otherwise run silently on every default.
     """
-    doc = yaml.safe_load(Path(path).read_text()) or {}
+    doc = read_yaml(path)
     if not isinstance(doc, dict):
-        raise ParameterError(f'{path}: not a ROS 2 parameter file')
+        raise ParameterError(f'{path}: not a ROS 2 parameter file (expected '
+                             f'"{node_name}: ros__parameters: ...")')
+    sections = node_sections(doc, node_name)
+    if not sections:
+        raise ParameterError(
+            f'{path}: no section for node {node_name!r} (sections in the file: '
+            f'{", ".join(map(str, doc)) or "none"}); expected "{node_name}:" or "/**:"')
     values: dict[str, Any] = {}
-    for key in ('/**', node_name, '/' + node_name):
-        section = doc.get(key)
+    for key in sections:
+        section = doc[key]
         if isinstance(section, dict):
             values.update(section.get('ros__parameters') or {})
     return values
 
 
 def load_params(path: str | Path, node_name: str = NODE_NAME) -> Params:
-    """Params from a ROS 2 params file; unknown keys are an error (a typo must not pass)."""
-    return Params.from_dict(read_param_values(path, node_name))
+    """Params from a ROS 2 params file; unknown keys are an error (a typo must not pass)
+    unless the file sets ``allow_unknown_parameters: true`` (they are then ignored)."""
+    values = read_param_values(path, node_name)
+    allow_unknown = bool(values.get('allow_unknown_parameters', False))
+    for key in NODE_ONLY_PARAMETERS:
+        values.pop(key, None)
+    try:
+        return Params.from_dict(values, ignore_unknown=allow_unknown)
+    except (ParameterError, TypeError) as exc:
+        raise ParameterError(f'{path}: {exc}') from None
 
 
-def save_params(params: Params, path: str | Path, node_name: str = NODE_NAME) -> None:
-    """Write params as a ROS 2 params file loadable with ``--ros-args --params-file``."""
-    Path(path).write_text(yaml.safe_dump({node_name: {'ros__parameters': params.to_dict()}},
-                                         sort_keys=False))
+def save_params(params: Params, path: str | Path, node_name: str = NODE_NAME, *,
+                comments: list[str] | tuple[str, ...] = ()) -> None:
+    """Write params as a ROS 2 params file loadable with ``--ros-args --params-file``;
+    ``comments`` (one paragraph each) go at the top as ``#`` lines."""
+    import textwrap
+
+    head = ''.join(''.join(f'# {line}\n' for line in textwrap.wrap(c, 96)) for c in comments)
+    Path(path).write_text(head + yaml.safe_dump(
+        {node_name: {'ros__parameters': params.to_dict()}}, sort_keys=False))
 
 
 def _yaml_value(value: Any) -> str:
@@ -55,8 +108,6 @@ def _yaml_value(value: Any) -> str:
 
 def render_default_config() -> str:
     """The text of ``config/slip_estimator.yaml``: every parameter, its default and a comment."""
-    import dataclasses
-
     from slip_estimator.core.params import describe
 
     defaults = Params()

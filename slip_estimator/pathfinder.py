@@ -25,7 +25,7 @@ Time bases
       speed)/dt gives -0.13 s / -0.20 s; GNSS speed vs wheel speed (test17run, RTK) gives
       wheel stamp = GNSS time + 0.18 s. IMU and GNSS agree with each other; the joint states are
       about 0.1-0.2 s late. Timestamps are written as recorded; the estimator should allow for
-      this latency (``max_wheel_latency_s``) and may want a wheel time offset.
+      this latency (``wheel_latency_s``) and may want a wheel time offset.
 
 IMU axes and sign
     Raw axes are the sensor's x forward, y right, z down (FRD). At rest Az = -9.79 / -9.80 m/s^2
@@ -64,7 +64,6 @@ Runs and initial heading
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -485,6 +484,32 @@ def pathfinder_params(log: PathfinderLog, heading_deg: float | None = None,
         accel_bias_psd=ACCEL_BIAS_INSTABILITY_MPS2 ** 2 / BIAS_CORRELATION_TIME_S)
 
 
+def params_notes(facts: LogFacts, measured_noise: bool = False,
+                 measured_lag: bool = False) -> list[str]:
+    """What the params file takes from the measurements of the log, and why not where it keeps
+    a default (written as comments at the top of the file)."""
+    lag = facts.wheel_lag_s
+    notes = [f'Wheel stamps lag the IMU by {lag:.3f} s on this log (yaw-rate cross-correlation '
+             f'r = {facts.wheel_lag_corr:.2f}).']
+    if measured_lag:
+        notes.append(f'wheel_latency_s = {lag:.3f}: that measured lag.')
+    else:
+        notes.append('wheel_latency_s stays 0: compensating a constant lag did not improve the '
+                     'model on the Pathfinder logs (the lag drifts through a log, 0.095-0.165 s '
+                     'on s5t1; docs/validation.md, effect E); the node measures it online and '
+                     'names it in /diagnostics. import-pathfinder --measured-lag writes it.')
+    measured = (f'gyro {facts.gyro_noise_density:.2e} rad/s/sqrt(Hz), accel '
+                f'{facts.accel_noise_density:.2e} m/s^2/sqrt(Hz)')
+    if measured_noise:
+        notes.append(f'gyro_noise_density, accel_noise_density: measured at rest ({measured}).')
+    else:
+        notes.append(f'gyro_noise_density, accel_noise_density: ADIS16495-2 datasheet, not the '
+                     f'values measured at rest ({measured}): the excess at rest is vibration, '
+                     'carried by vibration_noise_fraction (docs/validation.md, effect B). '
+                     'import-pathfinder --measured-noise writes the measured values.')
+    return notes
+
+
 def _stamp(msg_header, t_s: float) -> int:
     from slip_estimator.ros.convert import ns_to_stamp
 
@@ -502,7 +527,9 @@ def write_bag(log: PathfinderLog, bag_path: str | Path, progress: bool = False) 
     from sensor_msgs.msg import Imu, JointState, NavSatFix, NavSatStatus
 
     from slip_estimator.bagio import BagWriter
+    from slip_estimator.progress import Progress
 
+    line = Progress(progress)
     dt_imu = float(np.median(np.diff(log.imu_t_s)))
     gyro_var = GYRO_ARW_RAD_PER_SQRT_S ** 2 / dt_imu
     accel_var = ACCEL_VRW_MPS_PER_SQRT_S ** 2 / dt_imu
@@ -554,26 +581,32 @@ def write_bag(log: PathfinderLog, bag_path: str | Path, progress: bool = False) 
                 topic = '/gnss/fix'
             bag.write(topic, msg, ns)
             counts[topic] += 1
-            if progress and n % 5000 == 0:
-                print(f'\r  writing {n}/{len(events)} messages', end='', file=sys.stderr)
-    if progress:
-        print(f'\r  wrote {len(events)} messages          ', file=sys.stderr)
+            if n % 5000 == 0:
+                line.show(f'  writing {n}/{len(events)} messages')
+    line.done(f'  wrote {len(events)} messages')
     return counts
 
 
 def import_pathfinder(mat_path: str | Path, bag_path: str | Path,
                       params_path: str | Path | None = None, *, measured_noise: bool = False,
+                      measured_lag: bool = False, heading_deg: float | None = None,
                       progress: bool = False) -> tuple[PathfinderLog, LogFacts, Params]:
-    """Convert a Pathfinder ``.mat`` log to an MCAP bag (and a params file when requested).
+    """Convert a Pathfinder ``.mat`` log to an MCAP bag (and a params file when requested,
+    with :func:`params_notes` as its header comments).
 
-    Returns the log, its checked facts and the parameters written.
+    Returns the log, its checked facts and the parameters written. ``heading_deg`` overrides
+    the initial heading estimated from GNSS.
     """
     from slip_estimator.paramfile import save_params
 
     log = read_pathfinder_mat(mat_path)
     facts = log_facts(log)
-    params = pathfinder_params(log, facts.heading.heading_deg, measured_noise)
+    heading = facts.heading.heading_deg if heading_deg is None else heading_deg
+    params = pathfinder_params(log, heading, measured_noise)
+    if measured_lag:
+        params = params.replace(wheel_latency_s=facts.wheel_lag_s)
     write_bag(log, bag_path, progress=progress)
     if params_path is not None:
-        save_params(params, params_path)
+        save_params(params, params_path,
+                    comments=params_notes(facts, measured_noise, measured_lag))
     return log, facts, params

@@ -10,7 +10,6 @@ import argparse
 import json
 import math
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -29,30 +28,30 @@ JOINT_TOPIC = '/joint_states'
 
 
 class _Progress:
-    """A single stderr line updated at most every 0.5 s."""
+    """Bag-reading progress: messages and seconds of data read (see :mod:`progress`)."""
 
     def __init__(self, label: str, total_s: float | None, enabled: bool = True) -> None:
-        self.label, self.total_s, self.enabled = label, total_s, enabled
-        self._last = 0.0
+        from slip_estimator.progress import Progress
+
+        self.label, self.total_s = label, total_s
+        self._line = Progress(enabled)
         self._t0: int | None = None
 
     def update(self, n: int, log_time_ns: int) -> None:
-        if not self.enabled:
-            return
-        now = time.monotonic()
-        if now - self._last < 0.5:
-            return
-        self._last = now
         if self._t0 is None:
             self._t0 = log_time_ns
+        if not self._line.due():
+            return
         elapsed = (log_time_ns - self._t0) * 1e-9
         frac = f' {100.0 * elapsed / self.total_s:5.1f}%' if self.total_s else ''
-        print(f'\r{self.label}: {n} messages, {elapsed:7.1f} s of data{frac}', end='',
-              file=sys.stderr, flush=True)
+        self._line.show(f'{self.label}: {n} messages, {elapsed:7.1f} s of data{frac}')
 
     def done(self, n: int) -> None:
-        if self.enabled:
-            print(f'\r{self.label}: {n} messages read' + ' ' * 30, file=sys.stderr, flush=True)
+        self._line.done(f'{self.label}: {n} messages read')
+
+
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
 def number(text: Any) -> float:
@@ -335,26 +334,31 @@ def evaluate_main(argv: list[str] | None = None) -> int:
     ap.add_argument('--quiet', action='store_true', help='no progress line')
     args = ap.parse_args(argv)
 
-    from slip_estimator.core.params import Params
+    from slip_estimator.bagio import BagError
+    from slip_estimator.core.params import ParameterError, Params
     from slip_estimator.evaluation import evaluate_run
+    from slip_estimator.paramfile import load_params
 
-    params = Params()
-    if args.params:
-        from slip_estimator.paramfile import load_params
-        params = load_params(args.params)
-    run = load_run(args.input, args.estimate, wheel_radius_m=params.wheel_radius,
-                   wheel_joint_names=list(params.wheel_joint_names), progress=not args.quiet)
-    if len(run.est_slip_stamp_ns) == 0:
-        print('error: no slip estimates in the output bag', file=sys.stderr)
-        return 1
-    llh0 = None
-    if args.params:
-        llh0 = np.array([math.radians(params.initial_latitude_deg),
-                         math.radians(params.initial_longitude_deg), params.initial_height_m])
-    ev = evaluate_run(run, llh0=llh0, moving_threshold_mps=params.moving_speed_threshold,
-                      gnss_window_s=args.gnss_window,
-                      wheel_time_offset_s=args.wheel_time_offset,
-                      projection=args.projection)
+    try:
+        params = load_params(args.params) if args.params else Params()
+        run = load_run(args.input, args.estimate, wheel_radius_m=params.wheel_radius,
+                       wheel_joint_names=list(params.wheel_joint_names),
+                       progress=not args.quiet)
+        if len(run.est_slip_stamp_ns) == 0:
+            raise ValueError(f'{args.estimate}: no slip estimates (/slip_estimator/slip) in '
+                             'the output bag')
+        llh0 = None
+        if args.params:
+            llh0 = np.array([math.radians(params.initial_latitude_deg),
+                             math.radians(params.initial_longitude_deg),
+                             params.initial_height_m])
+        ev = evaluate_run(run, llh0=llh0, moving_threshold_mps=params.moving_speed_threshold,
+                          gnss_window_s=args.gnss_window,
+                          wheel_time_offset_s=args.wheel_time_offset,
+                          projection=args.projection)
+    except (ParameterError, BagError, ValueError) as exc:
+        print(f'slip-estimator evaluate: {exc}', file=sys.stderr)
+        return 2
     print(summary_text(ev))
     report_dir = Path(args.report_dir)
     report_dir.mkdir(parents=True, exist_ok=True)
@@ -367,7 +371,14 @@ def evaluate_main(argv: list[str] | None = None) -> int:
         Path(args.json).write_text(text)
     (report_dir / 'summary.txt').write_text(summary_text(ev) + '\n')
     if not args.no_plots:
-        files = write_figures(run, ev, report_dir)
+        try:
+            files = write_figures(run, ev, report_dir)
+        except ModuleNotFoundError as exc:
+            if exc.name != 'matplotlib':
+                raise
+            print('figures skipped: matplotlib is not installed (pip install '
+                  '"slip_estimator[plots]")', file=sys.stderr)
+            return 0
         print(f'report: {report_dir} ({", ".join(f.name for f in files)})')
     return 0
 
@@ -384,23 +395,36 @@ def import_main(argv: list[str] | None = None) -> int:
                                                   '(default: estimated from GNSS)')
     ap.add_argument('--measured-noise', action='store_true',
                     help='IMU noise densities measured at rest instead of the datasheet')
+    ap.add_argument('--measured-lag', action='store_true',
+                    help='wheel_latency_s = the wheel-stamp lag measured on the log (default 0)')
     args = ap.parse_args(argv)
 
     from slip_estimator import pathfinder as pf
-    from slip_estimator.paramfile import save_params
 
     if Path(args.output).exists():
-        print(f'error: {args.output} exists', file=sys.stderr)
-        return 1
-    log = pf.read_pathfinder_mat(args.mat)
-    facts = pf.log_facts(log)
+        print(f'slip-estimator import-pathfinder: {args.output} exists', file=sys.stderr)
+        return 2
+    if not Path(args.mat).is_file():
+        print(f'slip-estimator import-pathfinder: {args.mat}: no such file', file=sys.stderr)
+        return 2
+    try:
+        log, facts, params = pf.import_pathfinder(
+            args.mat, args.output, args.params_out, measured_noise=args.measured_noise,
+            measured_lag=args.measured_lag, heading_deg=args.heading, progress=True)
+    except ImportError:
+        print('slip-estimator import-pathfinder: needs h5py (pip install '
+              '"slip_estimator[pathfinder]" or pip install h5py)', file=sys.stderr)
+        return 2
+    except (OSError, KeyError, ValueError) as exc:
+        print(f'slip-estimator import-pathfinder: {args.mat}: not a Pathfinder .mat log '
+              f'(MATLAB v7.3 / HDF5 with tTimu, Ax.., llhGPS): {_first_line(exc)}',
+              file=sys.stderr)
+        return 2
     print(pf.format_facts(log, facts))
-    heading = facts.heading.heading_deg if args.heading is None else args.heading
-    params = pf.pathfinder_params(log, heading, args.measured_noise)
-    counts = pf.write_bag(log, args.output, progress=True)
-    print('wrote ' + ', '.join(f'{t}: {n}' for t, n in counts.items()) + f' -> {args.output}')
+    print(f'wrote {args.output}')
     if args.params_out:
-        save_params(params, args.params_out)
         print(f'params -> {args.params_out} (initial heading {params.initial_heading_deg:.2f} '
               'deg)')
+        notes = pf.params_notes(facts, args.measured_noise, args.measured_lag)
+        print('\n'.join('  ' + n for n in notes))
     return 0

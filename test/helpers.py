@@ -4,8 +4,9 @@
   copied into it), and the skip every test that needs them takes when they are absent.
 * :func:`score_sim_drive`: a simulated drive through the core, scored against the simulator's
   truth (the product's acceptance figures and the undeclared-effects tests).
-* :func:`synthetic_messages` / :func:`synthetic_params`: a small synthetic drive as ROS
-  messages (replay, node and alignment tests).
+* :func:`synthetic_messages` / :func:`synthetic_params` / :func:`write_synthetic_bag`: a small
+  synthetic drive as ROS messages or a bag (replay, node, alignment and user-error tests).
+* :func:`one_line_exit_2`: a command fails with one stderr line and exit status 2.
 """
 from pathlib import Path
 
@@ -110,3 +111,39 @@ def synthetic_params() -> Params:
     """Parameters matching the synthetic bag."""
     return Params(wheel_radius=WHEEL_RADIUS_M, wheel_input='joint_states',
                   wheel_joint_names=list(JOINTS))
+
+
+def write_synthetic_bag(path: Path, messages=None, *, sqlite3: bool = False) -> Path:
+    """Write ``messages`` (default: :func:`synthetic_messages`) as MCAP or sqlite3 bag."""
+    from rclpy.serialization import serialize_message
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from slip_estimator.bagio import BagWriter, message_type_name
+
+    messages = synthetic_messages() if messages is None else messages
+    if not sqlite3:
+        with BagWriter(path) as writer:
+            for topic, msg, log_ns in messages:
+                writer.write(topic, msg, log_ns)
+        return path
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    writer = Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3)
+    writer.open()
+    conns = {}
+    for topic, msg, log_ns in messages:
+        if topic not in conns:
+            conns[topic] = writer.add_connection(topic, message_type_name(msg),
+                                                 typestore=typestore)
+        writer.write(conns[topic], log_ns, serialize_message(msg))
+    writer.close()
+    return path
+
+
+def one_line_exit_2(main, capsys, argv, *words):
+    """``main(argv)`` exits 2 with one stderr line holding ``words`` and no traceback."""
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and 'Traceback' not in err, err
+    for w in words:
+        assert w in err, err

@@ -10,6 +10,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from slip_estimator.core.params import Params
+
 
 class ImuWindow:
     """The most recent IMU samples (body frame), oldest first, for window statistics.
@@ -124,6 +126,13 @@ class StationaryDetector:
         # have been stopped for a window: the thresholds never sit below its noise.
         self.rest_std: list[float] | None = None
 
+    @classmethod
+    def for_params(cls, p: Params) -> StationaryDetector:
+        """The detector of the parameters (window sized for 250 Hz until the rate is known)."""
+        return cls(max(2, int(round(p.stationary_window_s * 250.0))), p.stationary_accel_std,
+                   p.stationary_gyro_std, p.stationary_wheel_speed_mps,
+                   int(p.wheel_timeout_s * 1_000_000_000))
+
     @property
     def window_samples(self) -> int:
         """Nominal number of samples in the IMU window."""
@@ -132,6 +141,13 @@ class StationaryDetector:
     def resize(self, window_samples: int) -> None:
         """A new (empty) IMU window of ``window_samples`` (the IMU rate became known)."""
         self.window = ImuWindow(window_samples)
+
+    def fit_window(self, window_s: float, dt_s: float) -> None:
+        """Resize the IMU window (when it changes) to hold ``window_s`` at the IMU interval
+        ``dt_s`` (the IMU rate became known)."""
+        n = max(2, int(round(window_s / dt_s)))
+        if n != self.window_samples:
+            self.resize(n)
 
     def add_imu(self, f_ib_b: Sequence[float], omega_ib_b: Sequence[float]) -> None:
         """Feed one IMU sample."""
@@ -206,3 +222,26 @@ class TurnDetector:
         """Yaw rate = body rate projected on the local vertical."""
         yaw_rate = float(C_b_n[2] @ omega_nb_b)
         return math.fabs(yaw_rate) > self.yaw_rate_threshold_rps
+
+
+class ImuRate:
+    """The IMU's nominal sample interval: the median of its first ``learn_samples`` intervals,
+    then a slow running mean. Every window defined in seconds (stationarity, alignment) then
+    holds that many of its samples, whatever the rate (20-1000 Hz)."""
+
+    def __init__(self, learn_samples: int = 10, initial_dt_s: float = 1.0 / 250.0) -> None:
+        self.dt_s = initial_dt_s
+        self._learn_samples = learn_samples
+        self._first_dts_s: list[float] | None = []  # until the rate is known
+
+    def add(self, dt_s: float) -> bool:
+        """One regular interval (not a gap); True when the rate has just become known."""
+        if self._first_dts_s is None:
+            self.dt_s = 0.99 * self.dt_s + 0.01 * dt_s
+            return False
+        self._first_dts_s.append(dt_s)
+        if len(self._first_dts_s) < self._learn_samples:
+            return False
+        self.dt_s = float(np.median(self._first_dts_s))
+        self._first_dts_s = None
+        return True

@@ -43,6 +43,15 @@ class ResidualMonitor:
         self.mean_square[channel] = ms if math.isnan(prev) else prev + w * (ms - prev)
         self.count[channel] += 1
 
+    def add_update(self, name: str, innovation: np.ndarray, S: np.ndarray,
+                   channels: tuple[str, ...] | None = None) -> None:
+        """One update of model ``name``: as one channel, or one channel per row."""
+        if channels is None:
+            self.add(name, innovation, S)
+            return
+        for i, channel in enumerate(channels):
+            self.add(channel, innovation[i:i + 1], S[i:i + 1, i:i + 1])
+
     def add_held_slip(self, s_hold: float) -> None:
         """A slip value the hold-mode aid settled on during ordinary (low-slip) driving."""
         if abs(s_hold) > 0.2:

@@ -13,7 +13,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from slip_estimator.core.frames import skew
 from slip_estimator.core.planet import Planet, radii_of_curvature, surface_gravity
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 
@@ -108,11 +107,6 @@ def system_matrix(state: NavState, f_ib_n: np.ndarray | Sequence[float],
     F = np.zeros(N_ERR * N_ERR)
     F[_F_BLOCKS] = values
     return F.reshape(N_ERR, N_ERR)
-
-
-def transition_matrix(F: np.ndarray, tau_s: float) -> np.ndarray:
-    """First-order state transition matrix ``Phi = I + F tau`` (paper eq. 11)."""
-    return np.eye(N_ERR) + F * tau_s
 
 
 # process_noise computes ten 3x3 blocks of Q as one stack: the eight off-diagonal blocks of one

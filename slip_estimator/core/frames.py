@@ -140,16 +140,6 @@ def imu_to_body_dcm(imu_to_base_rpy: np.ndarray | list[float]) -> np.ndarray:
     return C_FLU_FRD @ rpy_to_dcm(*imu_to_base_rpy)
 
 
-def body_ned_to_base_enu(C_b_n: np.ndarray) -> np.ndarray:
-    """``C_base_odom`` (FLU in ENU) from the core attitude ``C_b_n`` (FRD in NED)."""
-    return C_ENU_NED @ C_b_n @ C_FLU_FRD
-
-
-def base_enu_to_body_ned(C_base_enu: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`body_ned_to_base_enu`: ``C_b_n`` from base_link's attitude in ENU."""
-    return C_ENU_NED @ C_base_enu @ C_FLU_FRD
-
-
 def heading_to_yaw_enu(heading_deg: float) -> float:
     """ROS yaw (rad, counter-clockwise from east) of a heading (deg, clockwise from north)."""
     return math.pi / 2.0 - math.radians(heading_deg)

@@ -1,11 +1,15 @@
-"""Pseudo-measurement models (paper eq. 17-23), each with ``innovation`` and ``H``.
+"""Measurement models (paper eq. 17-23, and the wheel aid's forward speed), each with
+``innovation``, ``jacobian`` (H) and ``covariance`` (R).
 
-Every model compares a physical constraint with the current estimate and returns the
-innovation ``z - h(x_est)`` and the Jacobian H such that ``innovation ~ H dx + noise`` with
-the error-state conventions of :mod:`slip_estimator.core.state`. Analytic Jacobians are checked
-against finite differences in the tests.
+Every model compares a physical constraint (or an aid value) with the current estimate and
+returns the innovation ``z - h(x_est)``, the Jacobian H such that ``innovation ~ H dx + noise``
+with the error-state conventions of :mod:`slip_estimator.core.state`, and its own noise
+covariance R. Analytic Jacobians are checked against finite differences in the tests.
 """
 from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import NamedTuple
 
 import numpy as np
 
@@ -19,6 +23,13 @@ class ZeroVelocity:
 
     name = 'zupt'
     dof = 3
+
+    def __init__(self, velocity_std_mps: float = 0.01) -> None:
+        self.velocity_std_mps = velocity_std_mps
+
+    def covariance(self) -> np.ndarray:
+        """``R = sigma_v^2 I``, m^2/s^2."""
+        return np.eye(3) * self.velocity_std_mps ** 2
 
     def innovation(self, state: NavState) -> np.ndarray:
         """``0 - v_eb_n``, m/s."""
@@ -42,8 +53,17 @@ class ZeroAngularRate:
     name = 'zaru'
     dof = 3
 
-    def __init__(self, planet: Planet) -> None:
+    def __init__(self, planet: Planet, rate_std_rps: float = 0.001,
+                 gyro_noise_density: float = 0.0) -> None:
         self.planet = planet
+        self.rate_std_rps = rate_std_rps
+        self.gyro_noise_density = gyro_noise_density
+
+    def covariance(self, period_s: float) -> np.ndarray:
+        """``R = (sigma_w^2 + N_g^2 / T) I``, rad^2/s^2: the constraint's own spread plus the
+        gyro white noise of a mean over ``period_s``."""
+        r = self.rate_std_rps ** 2 + self.gyro_noise_density ** 2 / period_s
+        return np.eye(3) * r
 
     def innovation(self, state: NavState, omega_ib_b_mean: np.ndarray) -> np.ndarray:
         """``C_n_b omega_ie_n - (omega_ib_b - b_g)``, rad/s, with the window-mean gyro rate."""
@@ -69,11 +89,18 @@ class NonHolonomic:
     """
 
     name = 'nhc'
+    channels = {1: 'nhc_lateral', 2: 'nhc_vertical'}
 
-    def __init__(self, planet: Planet, l_bw_b: np.ndarray) -> None:
+    def __init__(self, planet: Planet, l_bw_b: np.ndarray, lateral_std_mps: float = 0.05,
+                 vertical_std_mps: float = 0.05) -> None:
         self.planet = planet
         self.l_bw_b = np.asarray(l_bw_b, dtype=float)
         self._skew_l = skew(self.l_bw_b)
+        self._std_mps = {1: lateral_std_mps, 2: vertical_std_mps}
+
+    def covariance(self, rows: tuple[int, ...] = (1, 2)) -> np.ndarray:
+        """``R = diag(sigma_rows^2)``, m^2/s^2."""
+        return np.diag([self._std_mps[r] ** 2 for r in rows])
 
     def point_velocity_b(self, state: NavState, omega_ib_b: np.ndarray) -> np.ndarray:
         """Velocity of the constrained point resolved in b, m/s."""
@@ -101,3 +128,63 @@ class NonHolonomic:
         H[:, VEL] = -C_n_b
         H[:, BG] = self._skew_l
         return H[list(rows)]
+
+
+class ForwardSpeed:
+    """Wheel aid: the forward velocity of the wheel-contact point equals an aid value
+    ``z_mps`` (the rim speed through the held slip, ``r w g(s_hold)``, or the rim speed itself
+    while recovering). ``h(x)`` is row 0 of :meth:`NonHolonomic.point_velocity_b`, so H is the
+    forward row of the non-holonomic Jacobian; R is the variance the aid's decision states.
+    """
+
+    name = 'wheel'
+
+    def __init__(self, planet: Planet, l_bw_b: np.ndarray) -> None:
+        self._point = NonHolonomic(planet, l_bw_b)
+
+    def innovation(self, z_mps: float, v_fwd_mps: float) -> np.ndarray:
+        """``z - v_fwd``, m/s, with ``v_fwd`` the INS forward speed at the aid's instant."""
+        return np.array([z_mps - v_fwd_mps])
+
+    def jacobian(self, state: NavState) -> np.ndarray:
+        """``H = -row_x( C_n_b [v x], C_n_b, 0, 0, -[l x] )``, shape (1, 15)."""
+        return self._point.jacobian(state, (0,))
+
+    def covariance(self, var_mps2: float) -> np.ndarray:
+        """``R = [[var]]``, m^2/s^2."""
+        return np.array([[var_mps2]])
+
+
+class Constraint(NamedTuple):
+    """One pseudo-measurement to apply: model name, ``z - h(x)``, H, R, and the names of its
+    rows for the residual monitor (None: the model's name)."""
+
+    name: str
+    innovation: np.ndarray
+    H: np.ndarray
+    R: np.ndarray
+    channels: tuple[str, ...] | None = None
+
+
+class PseudoMeasurements:
+    """What the rover's physics allow now: ZUPT + ZARU at rest, else the non-holonomic
+    constraint (vertical only while a skid-steer turn violates the lateral one)."""
+
+    def __init__(self, zupt: ZeroVelocity, zaru: ZeroAngularRate, nhc: NonHolonomic) -> None:
+        self.zupt, self.zaru, self.nhc = zupt, zaru, nhc
+
+    def select(self, state: NavState, omega_ib_b_mean: np.ndarray, period_s: float,
+               stationary: bool, turning: bool) -> Iterator[Constraint]:
+        """The constraints in order, each evaluated when the previous one has been applied
+        (``state`` is then the corrected one): a generator, to be consumed one by one."""
+        if stationary:
+            yield Constraint('zupt', self.zupt.innovation(state), self.zupt.jacobian(state),
+                             self.zupt.covariance())
+            yield Constraint('zaru', self.zaru.innovation(state, omega_ib_b_mean),
+                             self.zaru.jacobian(state), self.zaru.covariance(period_s))
+            return
+        rows = (2,) if turning else (1, 2)
+        nhc = self.nhc
+        yield Constraint('nhc', nhc.innovation(state, omega_ib_b_mean, rows),
+                         nhc.jacobian(state, rows), nhc.covariance(rows),
+                         tuple(nhc.channels[r] for r in rows))

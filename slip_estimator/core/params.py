@@ -135,8 +135,6 @@ class Params:
     wheel_speed_std: float = _p(0.01, 'm/s', 'rim-speed measurement 1-sigma', 0.0, 1.0)
     moving_speed_threshold: float = _p(0.02, 'm/s', 'below this rim and body speed the rover '
                                        'is "not moving" (slip class 0)', 0.0, 1.0)
-    max_wheel_latency_s: float = _p(0.5, 's', 'wheel samples older than the filter by more than '
-                                    'this are dropped', 0.01, 10.0)
     wheel_timeout_s: float = _p(0.5, 's', 'without wheel data for this long slip is STALE',
                                 0.05, 60.0)
     # --- output ---------------------------------------------------------------------------------------
@@ -152,9 +150,10 @@ class Params:
 
     @classmethod
     def from_dict(cls, values: dict[str, Any], *, ignore_unknown: bool = False) -> Params:
-        """Build from a flat mapping; unknown keys raise unless ``ignore_unknown``."""
+        """Build from a flat mapping; unknown keys raise unless ``ignore_unknown`` (keys of
+        :data:`REMOVED_PARAMETERS` are ignored: files written before their removal load)."""
         names = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(values) - names)
+        unknown = sorted(set(values) - names - set(REMOVED_PARAMETERS))
         if unknown and not ignore_unknown:
             raise ParameterError(f'unknown parameter(s): {", ".join(unknown)}')
         return cls(**{k: v for k, v in values.items() if k in names})
@@ -166,6 +165,13 @@ class Params:
     def replace(self, **changes: Any) -> Params:
         """A copy with some fields changed (validated)."""
         return dataclasses.replace(self, **changes)
+
+
+REMOVED_PARAMETERS = {
+    'max_wheel_latency_s': 'never read (the wheel latency is wheel_latency_s; late wheel '
+                           'samples are those older than the 2 s forward-speed history)',
+}
+"""Parameters that no longer exist, with the reason; a file that still sets one loads."""
 
 
 def describe(name: str) -> str:

@@ -129,18 +129,6 @@ def earth_rate_n(planet: Planet, L_rad: float) -> np.ndarray:
     return np.array([w * math.cos(L_rad), 0.0, -w * math.sin(L_rad)])
 
 
-def transport_rate_n(planet: Planet, L_rad: float, h_m: float, v_eb_n: np.ndarray) -> np.ndarray:
-    """``omega_en_n``: rotation of NED w.r.t. the planet, rad/s (Groves eq. 5.44)."""
-    R_N, R_E = radii_of_curvature(planet, L_rad)
-    return np.array([v_eb_n[1] / (R_E + h_m), -v_eb_n[0] / (R_N + h_m),
-                     -v_eb_n[1] * math.tan(L_rad) / (R_E + h_m)])
-
-
-def llh_to_ecef(planet: Planet, L_rad: float, lambda_rad: float, h_m: float) -> np.ndarray:
-    """Curvilinear (latitude, longitude, height) to planet-fixed Cartesian, m (eq. 2.112)."""
-    return np.array(_llh_to_ecef_xyz(planet, L_rad, lambda_rad, h_m))
-
-
 def _llh_to_ecef_xyz(planet: Planet, L_rad: float, lambda_rad: float,
                      h_m: float) -> tuple[float, float, float]:
     _, R_E = radii_of_curvature(planet, L_rad)

@@ -111,3 +111,15 @@ class WheelTimingMonitor:
         self.lag_s, self.correlation = best_lag((imu[:, 0] - t0) * 1e-9, -imu[:, 1],
                                                 (wheel[:, 0] - t0) * 1e-9, wheel[:, 1],
                                                 step_s=0.01)
+
+    def suspicion(self, declared_latency_s: float) -> str | None:
+        """What the measured lag says against ``declared_latency_s`` (None: nothing).
+
+        The turns say when the wheels moved: a lag the parameters do not declare shifts every
+        slip step against the body motion."""
+        lag, corr = self.lag_s, self.correlation
+        if not (corr >= 0.8 and abs(lag - declared_latency_s) > 0.05):
+            return None
+        return (f'wheel stamps {lag * 1e3:+.0f} ms behind the IMU (yaw rate vs wheel '
+                f'differential in turns, r = {corr:.2f}) against a declared wheel_latency_s of '
+                f'{declared_latency_s:.3f} s: clock offset or undeclared latency')

@@ -11,6 +11,7 @@ Everything here is SI. Times are integer nanoseconds (``stamp_ns``), as at the R
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -133,3 +134,19 @@ class Health:
     level: int
     message: str
     values: dict
+
+
+def imu_values_usable(f_ib_b: list[float], omega_ib_b: list[float]) -> bool:
+    """Finite, and within :data:`MAX_SPECIFIC_FORCE_MPS2` / :data:`MAX_ANGULAR_RATE_RPS` (a
+    finite but absurd sample would wreck the INS in one step)."""
+    f, w = f_ib_b, omega_ib_b
+    if not math.isfinite(sum(f) + sum(w)):  # NaN/Inf anywhere
+        return False
+    return not (f[0] * f[0] + f[1] * f[1] + f[2] * f[2] > MAX_SPECIFIC_FORCE_MPS2 ** 2
+                or w[0] * w[0] + w[1] * w[1] + w[2] * w[2] > MAX_ANGULAR_RATE_RPS ** 2)
+
+
+def wheel_speeds(sample: WheelSample) -> list[float]:
+    """The rim speeds a wheel sample carries (mean, and left/right when known), m/s."""
+    return [v for v in (sample.rim_speed_mps, sample.rim_speed_left_mps,
+                        sample.rim_speed_right_mps) if v is not None]

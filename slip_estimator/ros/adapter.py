@@ -22,7 +22,10 @@ finite slip), so they skip the check unless the frame name itself reads as a num
 
 Parameter changes (:meth:`SlipEstimatorAdapter.request_params`) are validated by the caller and
 take effect at the next reset: an IMU stamp jumping back by more than ``RESET_JUMP_BACK_S``
-(bag loop, simulator restart) or an explicit :meth:`SlipEstimatorAdapter.reset`. Resetting a
+(bag loop, simulator restart, a sensor clock reset) or an explicit
+:meth:`SlipEstimatorAdapter.reset` (the node's ``~/reset`` service). The reason of every reset
+(the jump with both stamps, or the request) is named in the message of the next
+``/diagnostics`` report, at least WARN, and ``clock_jumps_back`` counts the jumps. Resetting a
 running INS mid-drive would lose its state, so a change never triggers a reset by itself.
 """
 from __future__ import annotations
@@ -91,7 +94,9 @@ class SlipEstimatorAdapter:
         self.dropped_non_finite: Counter[str] = Counter()
         self.callback_exceptions: Counter[str] = Counter()
         self.resets = 0
+        self.clock_jumps_back = 0
         self.imu_stamp_gaps = 0
+        self._reset_notes: list[str] = []
         self._configure(params)
 
     # --- configuration ------------------------------------------------------------------------
@@ -135,12 +140,15 @@ class SlipEstimatorAdapter:
         """Store validated parameters; they take effect at the next :meth:`reset`."""
         self._pending = None if params == self.params else params
 
-    def reset(self) -> None:
-        """Restart the estimator (with pending parameters, if any); counters are kept."""
+    def reset(self, reason: str = 'reset requested') -> None:
+        """Restart the estimator (with pending parameters, if any); counters are kept. The
+        reason is named in the next ``/diagnostics`` report."""
         params = self._pending or self.params
+        applied = ' (pending parameter change applied)' if self._pending is not None else ''
         self._pending = None
         self.resets += 1
         self._configure(params)
+        self._reset_notes.append(f'{reason}: estimator reset{applied}')
 
     # --- inputs ---------------------------------------------------------------------------------
     def on_message(self, topic: str, msg: Any) -> list[Output]:
@@ -163,7 +171,9 @@ class SlipEstimatorAdapter:
         stamp_ns = sample.stamp_ns
         if self._last_imu_ns is not None and stamp_ns <= self._last_imu_ns:
             if self._last_imu_ns - stamp_ns > RESET_JUMP_BACK_S * 1e9:
-                self.reset()
+                self.clock_jumps_back += 1
+                self.reset(f'IMU clock jumped back by {(self._last_imu_ns - stamp_ns) * 1e-9:.1f}'
+                           f' s (stamp {self._last_imu_ns * 1e-9:.3f} -> {stamp_ns * 1e-9:.3f})')
             else:
                 self.rejected[TOPIC_IMU, REASON_NON_MONOTONIC] += 1
                 return []
@@ -281,6 +291,10 @@ class SlipEstimatorAdapter:
             level = max(level, 1)
             message = (f'{message}; {new_rejects} input message(s) rejected, {new_drops} '
                        f'non-finite output(s) dropped since the last report')
+        if self._reset_notes:
+            level = max(level, 1)
+            message = '; '.join([message, *self._reset_notes])
+            self._reset_notes = []
         self._last_diag_ns = stamp_ns
         self._received_at_last_diag = Counter(self.received)
         self._rejected_at_last_diag = sum(self.rejected.values())
@@ -310,6 +324,7 @@ class SlipEstimatorAdapter:
         for topic, n in sorted(self.callback_exceptions.items()):
             values[f'{topic} callback_exceptions'] = n
         values['node_resets'] = self.resets  # 'resets' is the core's own counter
+        values['clock_jumps_back'] = self.clock_jumps_back
         values['parameter_change_pending'] = self._pending is not None
         return values
 

@@ -22,8 +22,15 @@ Declared from :class:`slip_estimator.core.params.Params` (names, defaults, descr
 unit and range) with dynamic typing, so that ``wheel_radius:=1`` (an integer) is accepted and
 every value is validated once, by Params. An invalid start-up value logs the parameter, value
 and allowed range and ``main`` returns 2. Runtime changes are validated the same way (invalid
-ones are rejected with that message); valid ones take effect at the next estimator reset (see
-the adapter). ``wheel_input`` cannot change at runtime: it decides the subscriptions.
+ones are rejected with that message); valid ones take effect at the next estimator reset: a
+sensor clock jump back, or a call of the ``~/reset`` service (``std_srvs/srv/Trigger``, e.g.
+``ros2 service call /slip_estimator/reset std_srvs/srv/Trigger``), which restarts the estimator
+at once. ``wheel_input`` cannot change at runtime: it decides the subscriptions.
+
+Parameter files: a file with no section for the node's name is reported at ERROR level with
+the sections it has (its values do not apply); a name that is not a parameter of the node
+(misspelled) makes the node refuse to start (exit 2) unless ``allow_unknown_parameters`` is
+true.
 
 Callback latency
 ----------------
@@ -55,8 +62,10 @@ from rclpy.qos import (
     QoSProfile,
     ReliabilityPolicy,
 )
+from std_srvs.srv import Trigger
 
 from slip_estimator.core.params import ParameterError, Params, describe
+from slip_estimator.paramfile import NODE_ONLY_PARAMETERS, node_sections, read_yaml
 from slip_estimator.ros.adapter import (
     OUTPUT_TYPES,
     TOPIC_DIAGNOSTICS,
@@ -110,6 +119,20 @@ def coerce_param_value(name: str, value: Any) -> Any:
 
 _DEFAULTS = Params()
 _FIELDS = tuple(f.name for f in dataclasses.fields(Params))
+ALLOW_UNKNOWN = 'allow_unknown_parameters'
+_ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+"""Parameters rclpy declares itself (plus ``qos_overrides.*``)."""
+
+
+def params_files(argv: list[str]) -> list[str]:
+    """The ``--params-file`` paths among the ROS arguments of ``argv``."""
+    return [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == '--params-file']
+
+
+def unknown_parameters(names: Any) -> list[str]:
+    """Names set for the node (params files, ``-p``) that are not parameters of it."""
+    return sorted(n for n in names if n not in _FIELDS and n not in NODE_ONLY_PARAMETERS
+                  and n not in _ROS_OWN_PARAMETERS and not n.startswith('qos_overrides.'))
 
 
 class SlipEstimatorNode(Node):
@@ -118,8 +141,10 @@ class SlipEstimatorNode(Node):
     Raises :class:`ParameterError` from the constructor when a parameter is invalid.
     """
 
-    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+    def __init__(self, node_name: str = NODE_NAME, *, param_files: list[str] | None = None,
+                 **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
+        self._check_parameter_sources(param_files or [])
         for name in _FIELDS:
             self.declare_parameter(
                 name, getattr(_DEFAULTS, name),
@@ -147,6 +172,48 @@ class SlipEstimatorNode(Node):
         self._watchdog = self.create_timer(
             STALE_AFTER_S, self._check_imu_stale, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._reset_service = self.create_service(Trigger, '~/reset', self._on_reset)
+
+    def _check_parameter_sources(self, param_files: list[str]) -> None:
+        """Log an ERROR for a params file with no section for this node (a misspelled node name
+        would run on every default); raise :class:`ParameterError` for a parameter that is not
+        one of the node's (misspelled) unless ``allow_unknown_parameters`` is true."""
+        fqn = self.get_fully_qualified_name()
+        for path in param_files:
+            doc = read_yaml(path)
+            if not node_sections(doc, fqn):
+                sections = ', '.join(map(str, doc)) if isinstance(doc, dict) else 'none'
+                self.get_logger().error(
+                    f'parameter file {path} has NO section for this node ({fqn}); sections in '
+                    f'the file: {sections or "none"}. None of its values apply: expected '
+                    f'"{self.get_name()}:" or "/**:" at the top level.')
+        allow = self.declare_parameter(
+            ALLOW_UNKNOWN, NODE_ONLY_PARAMETERS[ALLOW_UNKNOWN], ParameterDescriptor(
+                description='start even when a parameter file or -p sets a name that is not '
+                            'a parameter of this node (otherwise the node refuses to start)',
+                read_only=True)).value
+        unknown = unknown_parameters(self._parameter_overrides)
+        if unknown and not allow:
+            raise ParameterError(
+                f'unknown parameter(s) {", ".join(unknown)} (misspelled? every parameter: '
+                f'slip-estimator default-config); set {ALLOW_UNKNOWN}:=true to start anyway')
+        if unknown:
+            self.get_logger().error(f'ignoring unknown parameter(s) {", ".join(unknown)} '
+                                    f'({ALLOW_UNKNOWN} is true)')
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        """``~/reset`` (std_srvs/Trigger): restart the estimator now, applying any accepted
+        parameter change; the reset is named in the next ``/diagnostics`` report."""
+        pending = self.adapter.pending_params
+        changed = ({k: v for k, v in pending.to_dict().items()
+                    if getattr(self.adapter.params, k) != v} if pending is not None else {})
+        self.adapter.reset('reset requested on ~/reset')
+        response.success = True
+        response.message = ('estimator reset' + (f'; parameter change applied: {changed}'
+                                                 if changed else ''))
+        self.get_logger().warning(response.message)
+        return response
 
     def _callback(self, topic: str):  # noqa: ANN202 -- rclpy callback
         handle = self.adapter.on_message
@@ -207,7 +274,9 @@ class SlipEstimatorNode(Node):
             return SetParametersResult(successful=False, reason=str(exc))
         self.adapter.request_params(new)
         self.get_logger().info(
-            f'accepted parameter change {ours}; effective at the next estimator reset')
+            f'accepted parameter change {ours}; effective at the next estimator reset (call '
+            f'the {self.get_fully_qualified_name()}/reset service, std_srvs/srv/Trigger, to '
+            'apply it now)')
         return SetParametersResult(successful=True)
 
 
@@ -217,7 +286,9 @@ The slip_estimator ROS 2 node (also `ros2 run slip_estimator slip_estimator_node
 Inputs: /imu/data (sensor_msgs/Imu), /joint_states or /wheel/odometry (parameter
 wheel_input). Outputs: /slip_estimator/odometry, /slip_estimator/slip,
 /slip_estimator/slip_ratio, /diagnostics. Every parameter, with its unit and range:
-`slip-estimator default-config`."""
+`slip-estimator default-config`. A name that is not a parameter of the node refuses the
+start unless -p allow_unknown_parameters:=true. Service ~/reset (std_srvs/srv/Trigger):
+restart the estimator now, applying accepted runtime parameter changes."""
 
 
 def main(args: list[str] | None = None) -> int:
@@ -230,11 +301,18 @@ def main(args: list[str] | None = None) -> int:
     if '-h' in argv or '--help' in argv:
         print(NODE_HELP)
         return 0
+    files = params_files(argv)
+    for path in files:  # rcl would raise a traceback on a file it cannot parse
+        try:
+            read_yaml(path)
+        except ParameterError as exc:
+            print(f'slip-estimator-node: {exc}', file=sys.stderr)
+            return 2
     rclpy.init(args=args)
     node = None
     try:
         try:
-            node = SlipEstimatorNode()
+            node = SlipEstimatorNode(param_files=files)
         except ParameterError as exc:
             # rcutils writes to stderr: the message names the parameter and its range.
             rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid parameter, not starting: {exc}')

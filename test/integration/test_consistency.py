@@ -102,7 +102,7 @@ def test_zupt_nis_is_consistent_at_rest():
                               w_ie_n + rng.normal(0, p.gyro_noise_density * 10, 3)))
         if k % 10 == 0:
             est.add_wheel(WheelSample(stamp, 0.0))
-        nis += [r.nis for r in est.last_records if r.name == 'zupt' and k > 20 * RATE_HZ]
-        est.last_records = []
+        nis += [r.nis for r in est.filter.last_records if r.name == 'zupt' and k > 20 * RATE_HZ]
+        est.filter.last_records.clear()
     lo, hi = chi2_bounds(3 * len(nis))
     assert lo <= sum(nis) <= hi, (sum(nis) / len(nis), len(nis))

@@ -232,11 +232,11 @@ def test_history_follows_corrections_for_delayed_wheel_samples():
     p = sim_params(r)
     est, _, _ = run_core_data(p, from_simulation(r, p), odometry_every=10 ** 9)
     past = est.stamp_ns - 100_000_000
-    v_before, _, free_before, _ = est._history_at(past)
+    v_before, _, free_before, _ = est.history.at(past)
     dx = np.zeros(15)
     dx[3:6] = 0.05 * est.state.C_b_n[:, 0]  # velocity error of 5 cm/s along body x
-    est._correct(dx)
-    v_after, _, free_after, _ = est._history_at(past)
+    est.history.apply(est.filter.correct(dx), aid=False)
+    v_after, _, free_after, _ = est.history.at(past)
     assert v_after - v_before == pytest.approx(-0.05, abs=1e-6)
     assert free_after == free_before  # the past free speed is what the INS said then
 
@@ -253,15 +253,16 @@ def test_free_speed_excludes_what_the_wheel_aid_did():
     dx = np.zeros(15)
     dx[3:6] = 0.05 * est.state.C_b_n[:, 0]
     dx[0:3] = 0.01 * est.state.C_b_n[:, 1]  # a 10 mrad pitch: 0.1 m/s^2 of gravity along x
-    history = est._history
-    t, _, _, free0, acc0 = history[-1]
-    est._correct(dx, aid=True)
-    est._record_history(t + 4_000_000, [0.0, 0.0, 0.0], 0.004)
-    _, _, _, free1, acc1 = history[-1]
+    history = est.history
+    t, (_, _, free0, acc0) = history.newest()
+    history.apply(est.filter.correct(dx), aid=True)
+    history.record(t + 4_000_000, est.state, [0.0, 0.0, 0.0], 0.004)
+    _, (_, _, free1, acc1) = history.newest()
     v_fwd = float(est.state.C_b_n[:, 0] @ est.state.v_eb_n)
     assert free1 - free0 == pytest.approx(-acc1 * 0.004, abs=1e-6)  # only the tilt's effect
     assert abs(acc1 - acc0) == pytest.approx(9.8 * 0.01, rel=0.05)
     assert abs(v_fwd - free1) > 0.04
-    est._correct(dx, aid=False)
-    est._record_history(t + 8_000_000, [0.0, 0.0, 0.0], 0.004)
-    assert history[-1][3] - free1 == pytest.approx(-0.05 - acc1 * 0.004, abs=2e-3)
+    history.apply(est.filter.correct(dx), aid=False)
+    history.record(t + 8_000_000, est.state, [0.0, 0.0, 0.0], 0.004)
+    assert history.newest()[1].v_free_mps - free1 == pytest.approx(-0.05 - acc1 * 0.004,
+                                                                    abs=2e-3)

@@ -295,20 +295,20 @@ def odometry_matrices(est: SlipEstimator):
     st = est.state
     r_bw_n = st.C_b_n @ est.l_bw_b
     T = curvilinear_to_ned(est.planet, st.llh[0], st.llh[2])
-    p_o = llh_to_local_enu(est.planet, st.llh + T @ r_bw_n, est._llh0)
+    p_o = llh_to_local_enu(est.planet, st.llh + T @ r_bw_n, est.odom_frame.llh0)
     C_base_odom = frames.C_ENU_NED @ st.C_b_n @ frames.C_FLU_FRD
-    w_b = est._omega_ib_b - st.b_g - st.C_b_n.T @ earth_rate_n(est.planet, st.llh[0])
+    w_b = est.omega_ib_b - st.b_g - st.C_b_n.T @ earth_rate_n(est.planet, st.llh[0])
     v_b = st.C_b_n.T @ st.v_eb_n + np.cross(w_b, est.l_bw_b)
     M = np.zeros((6, 6))
     M[:3, :3] = frames.C_ENU_NED @ np.linalg.inv(T)
     M[3:, 3:] = frames.C_ENU_NED
     idx = np.r_[POS, ATT]
-    pose = M @ est.P[np.ix_(idx, idx)] @ M.T
+    pose = M @ est.filter.P[np.ix_(idx, idx)] @ M.T
     M[:3, :3] = frames.C_FLU_FRD @ st.C_b_n.T
     M[3:, 3:] = frames.C_FLU_FRD
     idx = np.r_[VEL, BG]
-    twist = M @ est.P[np.ix_(idx, idx)] @ M.T
-    twist[3:, 3:] += np.eye(3) * est.params.gyro_noise_density ** 2 / est._nominal_dt
+    twist = M @ est.filter.P[np.ix_(idx, idx)] @ M.T
+    twist[3:, 3:] += np.eye(3) * est.params.gyro_noise_density ** 2 / est.imu_rate.dt_s
     return (p_o, quaternion_of(C_base_odom), frames.C_FLU_FRD @ v_b, frames.C_FLU_FRD @ w_b, kalman.symmetrize(pose),
             kalman.symmetrize(twist))
 

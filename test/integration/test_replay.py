@@ -10,37 +10,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rclpy.serialization import serialize_message
-from rosbags.rosbag2 import Reader, StoragePlugin, Writer
-from helpers import T0_NS, synthetic_messages, synthetic_params
+from helpers import T0_NS, synthetic_messages, synthetic_params, write_synthetic_bag
+from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore
 
-from slip_estimator.bagio import BagWriter, bag_topics, message_type_name, read_messages
+from slip_estimator.bagio import bag_topics, read_messages
 from slip_estimator.paramfile import load_params, save_params
 from slip_estimator.replay import replay_bag, replay_main
 from slip_estimator.ros import adapter as ad
 from slip_estimator.ros.convert import message_is_finite, ns_to_stamp, stamp_to_ns
-
-def write_synthetic_bag(path: Path, messages=None, *, sqlite3: bool = False) -> Path:
-    """Write ``messages`` (default: :func:`synthetic_messages`) as MCAP or sqlite3 bag."""
-    messages = synthetic_messages() if messages is None else messages
-    if not sqlite3:
-        with BagWriter(path) as writer:
-            for topic, msg, log_ns in messages:
-                writer.write(topic, msg, log_ns)
-        return path
-    typestore = get_typestore(Stores.ROS2_JAZZY)
-    writer = Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3)
-    writer.open()
-    conns = {}
-    for topic, msg, log_ns in messages:
-        if topic not in conns:
-            conns[topic] = writer.add_connection(topic, message_type_name(msg),
-                                                 typestore=typestore)
-        writer.write(conns[topic], log_ns, serialize_message(msg))
-    writer.close()
-    return path
-
 
 def output_stream(bag: Path) -> list[tuple[str, int, bytes]]:
     """(topic, log time, canonical CDR bytes) of every message of a bag, in bag order.

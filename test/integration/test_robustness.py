@@ -315,10 +315,6 @@ def test_core_huge_finite_imu_values(f_x):
     run_core(events[:i + 1] + [bad] + _shift(events[i + 1:], None, 2))
 
 
-@pytest.mark.xfail(strict=True, reason='DEFECT: with wheel stamps more than wheel_timeout_s '
-                   'behind the IMU, _stale_check reports "unknown" (stamped at IMU time) after '
-                   'every wheel sample although wheel data flow: half the slip reports are '
-                   'unknown and slip times jump back by the latency at every sample')
 def test_core_wheel_latency_beyond_timeout():
     """Wheels stamped 0.7 s behind the IMU (wheel_timeout_s = 0.5 s), delivered in time order:
     slip times must not go back and, once the IMU has passed the first wheel sample, no

@@ -8,7 +8,8 @@ import pytest
 from slip_estimator.core.error_model import process_noise, system_matrix
 from slip_estimator.core.frames import rpy_to_dcm
 from slip_estimator.core.mechanization import mechanize
-from slip_estimator.core.measurements import NonHolonomic, ZeroAngularRate, ZeroVelocity
+from slip_estimator.core.measurements import (ForwardSpeed, NonHolonomic, ZeroAngularRate,
+                                              ZeroVelocity)
 from slip_estimator.core.planet import EARTH, MARS
 from slip_estimator.core.state import N_ERR, NavState, correct, difference
 
@@ -87,6 +88,16 @@ def test_nhc_jacobian_with_lever_arm(rows):
     w = np.array([0.05, -0.02, 0.4])
     _check_jacobian(lambda s: m.innovation(s, w, rows), m.jacobian(est, rows), est,
                     np.random.default_rng(4))
+
+
+def test_forward_speed_jacobian_with_lever_arm():
+    """The wheel aid's model: h(x) is the forward velocity of the wheel-contact point."""
+    est = nominal_state()
+    l_bw_b = np.array([-0.2, 0.1, 0.3])
+    m, point = ForwardSpeed(EARTH, l_bw_b), NonHolonomic(EARTH, l_bw_b)
+    w = np.array([0.05, -0.02, 0.4])
+    _check_jacobian(lambda s: m.innovation(0.7, point.point_velocity_b(s, w)[0]),
+                    m.jacobian(est), est, np.random.default_rng(5))
 
 
 def test_process_noise_is_symmetric_positive_semidefinite():

@@ -1,0 +1,121 @@
+"""The estimator's outputs as pure functions: the slip of one wheel sample, and the odometry.
+
+Nothing here feeds back into the filter.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from slip_estimator.core import frames, kalman
+from slip_estimator.core.error_model import curvilinear_to_ned
+from slip_estimator.core.params import Params
+from slip_estimator.core.planet import LocalEnu, Planet, radii_of_curvature
+from slip_estimator.core.slip import slip_class, slip_ratio, slip_ratio_std
+from slip_estimator.core.state import BG, VEL, NavState
+from slip_estimator.core.types import OdometryEstimate, SlipEstimate, WheelSample
+
+# Odometry covariances. Pose: (position, attitude psi) in odom (ENU) is a signed permutation
+# of (POS, ATT) scaled by 1 / T_r(n)^p, written as indices and signs: rows/cols
+# (E, N, U) <- (lambda, L, h) and (psi_E, psi_N, psi_U) <- (psi_E, psi_N, -psi_D).
+_POSE_IX = np.ix_([7, 6, 8, 1, 0, 2], [7, 6, 8, 1, 0, 2])
+_TWIST_IX = np.ix_(np.r_[VEL, BG], np.r_[VEL, BG])
+_FLU_FRD_SIGN = np.array([1.0, -1.0, -1.0])  # frames.C_FLU_FRD as a diagonal
+
+
+def unknown_slip(stamp_ns: int, wheel_speed_mps: float = 0.0) -> SlipEstimate:
+    """Slip unknown (NaN values, class -1) at ``stamp_ns``."""
+    return SlipEstimate(stamp_ns, float('nan'), float('nan'), -1, float('nan'),
+                        float('nan'), wheel_speed_mps)
+
+
+def slip_before_alignment(wheel: WheelSample, p: Params, imu_steady: bool) -> SlipEstimate:
+    """Before alignment only "not moving" is known (wheels and IMU at rest)."""
+    if abs(wheel.rim_speed_mps) < p.moving_speed_threshold and imu_steady:
+        return SlipEstimate(wheel.stamp_ns, 0.0, 0.0, 0, 0.0, 0.0, wheel.rim_speed_mps)
+    return unknown_slip(wheel.stamp_ns, wheel.rim_speed_mps)
+
+
+def slip_estimate(wheel: WheelSample, v_body_mps: float, yaw_rate_b_rps: float,
+                  var_v_mps2: float, p: Params, stationary: bool,
+                  track_width_m: float) -> SlipEstimate:
+    """The slip of one wheel sample (paper eq. 1) against the body forward speed
+    ``v_body_mps`` (variance ``var_v_mps2``) at its instant; per side with the effective
+    ``track_width_m`` and the yaw rate (FRD) when the sample has sides."""
+    var_w = p.wheel_speed_std ** 2
+    w = wheel.rim_speed_mps
+    # "Not moving" when the rim speed is below the threshold and the body speed is not
+    # significantly above it (an in-place turn or a stop must not read as extreme slip
+    # because of a few cm/s of velocity uncertainty).
+    body_threshold = max(p.moving_speed_threshold, 3.0 * math.sqrt(max(var_v_mps2, 0.0)))
+    # The stationarity detector (IMU still and wheels stopped) says "not moving" outright:
+    # a few cm/s of INS error at a stop must not read as a body sliding off its wheels.
+    moving = (abs(w) >= p.moving_speed_threshold or abs(v_body_mps) >= body_threshold) \
+        and not stationary
+    s = slip_ratio(v_body_mps, w) if moving else 0.0
+    s_std = slip_ratio_std(v_body_mps, w, var_v_mps2, var_w) if moving else 0.0
+    sides = [None, None]
+    if wheel.rim_speed_left_mps is not None and wheel.rim_speed_right_mps is not None \
+            and moving:
+        # FRD yaw rate > 0 turns right: the left track moves faster.
+        half = 0.5 * track_width_m * yaw_rate_b_rps
+        sides = [slip_ratio(v_body_mps + half, wheel.rim_speed_left_mps),
+                 slip_ratio(v_body_mps - half, wheel.rim_speed_right_mps)]
+    return SlipEstimate(wheel.stamp_ns, s, s_std, slip_class(s, moving), v_body_mps,
+                        math.sqrt(max(var_v_mps2, 0.0)), w, sides[0], sides[1])
+
+
+def base_llh(state: NavState, l_bw_b: np.ndarray, planet: Planet) -> np.ndarray:
+    """Curvilinear position (rad, rad, m) of base_link, lever arm ``l_bw_b`` from the IMU."""
+    r_bw_n = state.C_b_n @ l_bw_b
+    return state.llh + curvilinear_to_ned(planet, state.llh[0], state.llh[2]) @ r_bw_n
+
+
+def odometry(stamp_ns: int, state: NavState, P: np.ndarray, omega_ib_b: np.ndarray,
+             l_bw_b: tuple[float, float, float], planet: Planet, odom: LocalEnu,
+             gyro_rate_var_rps2: float) -> OdometryEstimate:
+    """Fused solution of base_link in odom from the filter's ``state`` and ``P``; the body
+    rate from the last gyro sample ``omega_ib_b``, its variance ``gyro_rate_var_rps2``.
+
+    On floats where numpy would cost more than the arithmetic; a test checks it against the
+    matrix formulas."""
+    st = state
+    L, lam, h = st.llh.tolist()
+    c11, c12, c13, c21, c22, c23, c31, c32, c33 = C = st.C_b_n.ravel().tolist()
+    vN, vE, vD = st.v_eb_n.tolist()
+    lx, ly, lz = l_bw_b
+    R_N, R_E = radii_of_curvature(planet, L)
+    T_L, T_lam = 1.0 / (R_N + h), 1.0 / ((R_E + h) * math.cos(L))  # T_r(n)^p, T_h = -1
+    # base_link position: llh + T C_b_n l_bw_b, in odom.
+    p_o = odom.enu(L + T_L * (c11 * lx + c12 * ly + c13 * lz),
+                   lam + T_lam * (c21 * lx + c22 * ly + c23 * lz),
+                   h - (c31 * lx + c32 * ly + c33 * lz))
+    # C_base_odom = C_ENU_NED C_b_n C_FLU_FRD: rows N, E swapped, D negated; y, z negated.
+    q = frames.dcm_to_quat_wxyz_floats(c21, -c22, -c23, c11, -c12, -c13, -c31, c32, c33)
+    # omega_eb_b = omega_ib_b - b_g - C_n_b omega_ie_n; v = C_n_b v_eb_n + omega_eb_b x l.
+    w_ie = planet.omega_ie_rps
+    w_ie_N, w_ie_D = w_ie * math.cos(L), -w_ie * math.sin(L)
+    o1, o2, o3 = omega_ib_b.tolist()
+    b1, b2, b3 = st.b_g.tolist()
+    wx = o1 - b1 - (c11 * w_ie_N + c31 * w_ie_D)
+    wy = o2 - b2 - (c12 * w_ie_N + c32 * w_ie_D)
+    wz = o3 - b3 - (c13 * w_ie_N + c33 * w_ie_D)
+    vx = c11 * vN + c21 * vE + c31 * vD + (wy * lz - wz * ly)
+    vy = c12 * vN + c22 * vE + c32 * vD + (wz * lx - wx * lz)
+    vz = c13 * vN + c23 * vE + c33 * vD + (wx * ly - wy * lx)
+    # Covariances from P of the last propagation epoch (at most covariance_decimation
+    # samples old). Pose: position (curvilinear -> NED m -> ENU) and attitude psi (NED ->
+    # ENU), i.e. M P M^T with M = diag(C_ENU_NED T^-1, C_ENU_NED), a scaled signed
+    # permutation: indexing and scaling. Twist: velocity (NED -> base_link) and gyro bias
+    # (b -> base_link), M = diag(C_FLU_FRD C_n_b, C_FLU_FRD), plus the gyro noise.
+    s = np.array((1.0 / T_lam, 1.0 / T_L, 1.0, 1.0, 1.0, -1.0))
+    pose_cov = (s[:, None] * s) * P[_POSE_IX]  # symmetric as P is: s_a s_b = s_b s_a
+    M = np.zeros((6, 6))
+    M[:3, :3] = (C[0:9:3], [-c for c in C[1:9:3]], [-c for c in C[2:9:3]])
+    M[[3, 4, 5], [3, 4, 5]] = _FLU_FRD_SIGN
+    twist_cov = M @ P[_TWIST_IX] @ M.T
+    twist_cov[[3, 4, 5], [3, 4, 5]] += gyro_rate_var_rps2
+    return OdometryEstimate(stamp_ns, np.array(p_o), np.array(q),
+                            np.array((vx, -vy, -vz)), np.array((wx, -wy, -wz)),
+                            pose_cov, kalman.symmetrize(twist_cov))

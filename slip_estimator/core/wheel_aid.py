@@ -1,0 +1,57 @@
+"""The wheel aid: what one wheel sample's rim speed may tell the filter.
+
+``wheel_aid = 'hold'``: the slip model (:mod:`slip_estimator.core.slip_model`) decides per
+wheel sample whether the rim speed aids the forward velocity as ``r w g(s_hold)``, re-anchors
+it after a slip change, or leaves the INS free while a new slip is measured. While the
+estimator recovers (after an in-motion start, an IMU gap or a divergence) the rim speed
+re-anchors the velocity with zero slip assumed. ``'off'``: never (the paper's method). The
+decisions are :class:`~slip_estimator.core.slip_model.AidDecision`
+values for the filter's :class:`~slip_estimator.core.measurements.ForwardSpeed` model.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from slip_estimator.core.history import HistoryPoint
+from slip_estimator.core.params import Params
+from slip_estimator.core.slip_model import AidDecision, SlipModel
+from slip_estimator.core.types import SlipEstimate, WheelSample
+
+_RECOVERY_SLIP_STD = 0.1  # zero slip assumed while recovering: 10 % of the rim speed, 1-sigma
+
+
+class WheelAid:
+    """Wheel-aid decisions (see the module docstring); :attr:`slip_model` is the slip model."""
+
+    def __init__(self, params: Params) -> None:
+        self._mode = params.wheel_aid
+        self._moving_speed_mps = params.moving_speed_threshold
+        self._aid_std_mps = params.wheel_aid_std
+        self.slip_model = SlipModel(params)
+        # A fresh filter starts from rest (a static alignment is ZUPT-anchored; an in-motion
+        # start resets the model again). Said explicitly: SlipModel() leaves it unset until the
+        # first stop, and a model whose first evaluated wheel sample is already moving (wheel
+        # stamps lagging the IMU) would otherwise fail on it.
+        self.slip_model.reset(from_rest=True)
+
+    def reanchor(self, rim_speed_mps: float, turning: bool) -> AidDecision | None:
+        """While recovering: the rim speed itself (zero slip assumed; not in a turn, whose
+        skid the rim speed does not describe). A repair: the free speed keeps its effect."""
+        if self._mode == 'off' or turning:
+            return None
+        var_mps2 = self._aid_std_mps ** 2 + (_RECOVERY_SLIP_STD * rim_speed_mps) ** 2
+        return AidDecision(rim_speed_mps, var_mps2, repair=True)
+
+    def decide(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate,
+               C_b_n: np.ndarray, turning: bool) -> AidDecision | None:
+        """The slip model's decision for one evaluated wheel sample (``est`` its slip, ``at``
+        the history at its instant, ``C_b_n`` the attitude now)."""
+        if self._mode != 'hold':
+            return None
+        w = wheel.rim_speed_mps
+        moving = est.slip_class > 0 and abs(w) >= self._moving_speed_mps
+        pitch_rad = -math.asin(max(-1.0, min(1.0, float(C_b_n[2, 0]))))
+        return self.slip_model.step(wheel.stamp_ns, w, at.v_fwd_mps, at.v_free_mps, moving,
+                                    turning, pitch_rad, at.aid_accel_mps2)

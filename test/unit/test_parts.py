@@ -1,0 +1,310 @@
+"""Unit tests of the estimator's parts, each driven alone with closed-form expectations:
+the error-state filter (predict, gated Joseph update, correction), the forward-speed history
+(correction shift, free speed), the supervisor's decisions, the wheel aid's decisions, the
+pure slip output, and the parameter schema's removed keys."""
+import math
+
+import numpy as np
+import pytest
+
+from slip_estimator.core.detectors import ImuRate, ImuWindow
+from slip_estimator.core.filter import ErrorStateFilter, vibration_psd
+from slip_estimator.core.frames import rpy_to_dcm
+from slip_estimator.core.history import Correction, ForwardSpeedHistory
+from slip_estimator.core.kalman import chi2_threshold
+from slip_estimator.core.measurements import ForwardSpeed
+from slip_estimator.core.outputs import slip_before_alignment, slip_estimate, unknown_slip
+from slip_estimator.core.params import REMOVED_PARAMETERS, ParameterError, Params
+from slip_estimator.core.planet import EARTH, gravity_n
+from slip_estimator.core.state import BA, BG, N_ERR, POS, VEL, NavState
+from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
+from slip_estimator.core.types import WheelSample
+from slip_estimator.core.wheel_aid import WheelAid
+
+LLH = np.array([math.radians(39.6), math.radians(-79.9), 310.0])
+P0 = np.diag([1e-6, 1e-6, 1e-4, 1e-4, 1e-4, 1e-4, 1e-16, 1e-16, 1e-2,
+              1e-4, 1e-4, 1e-4, 1e-8, 1e-8, 1e-8])
+
+
+def level_state(v_eb_n=(0.0, 0.0, 0.0), heading_rad=0.0) -> NavState:
+    return NavState(rpy_to_dcm(0.0, 0.0, heading_rad), np.array(v_eb_n, dtype=float),
+                    LLH.copy(), np.zeros(3), np.zeros(3))
+
+
+def started_filter(params=None, **state) -> ErrorStateFilter:
+    flt = ErrorStateFilter(params or Params(), EARTH)
+    flt.start(level_state(**state), P0.copy(), 9.8)
+    return flt
+
+
+# ---------------------------------------------------------------------------- filter
+def test_predict_at_rest_grows_velocity_variance_by_the_accelerometer_psd():
+    """Level and at rest, an empty vibration window: over tau the velocity variance grows by
+    S_ra tau (plus the tilt coupling g^2 P_att tau^2, taken out in closed form)."""
+    p = Params()
+    flt = started_filter(p)
+    g_n = gravity_n(EARTH, LLH[0], LLH[2])
+    f_b = (-g_n).tolist()
+    w_ie_b = [EARTH.omega_ie_rps * math.cos(LLH[0]), 0.0, -EARTH.omega_ie_rps * math.sin(LLH[0])]
+    dt, n = 0.004, p.covariance_decimation
+    due = [flt.mechanize(f_b, w_ie_b, dt) for _ in range(n)]
+    assert due == [False] * (n - 1) + [True]
+    flt.predict_covariance(ImuWindow(10), dt)
+    tau = n * dt
+    g = float(np.linalg.norm(g_n))
+    expected = P0[3, 3] + p.accel_noise_density ** 2 * tau + g * g * P0[0, 0] * tau * tau
+    assert flt.P[3, 3] == pytest.approx(expected, rel=2e-3)
+    assert flt.P[POS, POS][2, 2] > P0[8, 8]  # height grows with the vertical velocity
+    assert np.allclose(flt.P, flt.P.T, atol=0)
+    assert np.linalg.norm(flt.state.v_eb_n) < 1e-6  # the INS stays at rest
+
+
+def test_vibration_inflates_the_psd_by_the_excess_spread_only():
+    S = (1e-6, 1e-4, 1e-8, 1e-12)
+    quiet = ImuWindow(4)
+    assert vibration_psd(S, 0.5, quiet, 0.01) == S  # fewer than two samples
+    window = ImuWindow(4)
+    for k in range(4):
+        sign = 1.0 if k % 2 else -1.0
+        window.add([0.0, 0.0, sign * 1.0], [0.0, 0.0, sign * 0.1])
+    S_rg, S_ra, S_bad, S_bgd = vibration_psd(S, 0.5, window, 0.01)
+    # variance 1.0 (accel z) and 0.01 (gyro z), beyond the white part S / dt
+    assert S_ra == pytest.approx(1e-4 + 0.25 * (1.0 - 1e-4 / 0.01) * 0.01)
+    assert S_rg == pytest.approx(1e-6 + 0.25 * (0.01 - 1e-6 / 0.01) * 0.01)
+    assert (S_bad, S_bgd) == S[2:]
+    assert vibration_psd(S, 0.0, window, 0.01) == S
+
+
+def test_update_of_one_velocity_component_is_the_scalar_kalman_update():
+    """H picks v_N: gain P / (P + R), posterior P R / (P + R), the velocity moves by the
+    gain times the innovation (dx is subtracted from the state)."""
+    flt = started_filter(v_eb_n=(1.0, 0.0, 0.0))
+    H = np.zeros((1, N_ERR))
+    H[0, 3] = -1.0  # innovation = z - v_N ~ -dv_N
+    R = np.array([[1e-4]])
+    outcome = flt.update('wheel', np.array([0.01]), H, R)
+    k = 1e-4 / (1e-4 + 1e-4)
+    assert not outcome.gated and outcome.record.accepted
+    assert outcome.record.nis == pytest.approx(0.01 ** 2 / 2e-4)
+    assert flt.state.v_eb_n[0] == pytest.approx(1.0 + k * 0.01)
+    assert flt.P[3, 3] == pytest.approx(1e-4 * 1e-4 / 2e-4)
+    assert outcome.correction.dv_fwd_mps == pytest.approx(k * 0.01)  # heading north: x = N
+    assert flt.last_records == [outcome.record]
+    assert flt.nis_mean['wheel'] == outcome.record.nis
+
+
+def test_update_beyond_the_gate_is_applied_with_R_inflated_onto_the_gate():
+    flt = started_filter()
+    H = np.zeros((1, N_ERR))
+    H[0, 3] = -1.0
+    R = np.array([[1e-4]])
+    outcome = flt.update('wheel', np.array([1.0]), H, R)  # NIS 5000
+    gate = chi2_threshold(1, Params().innovation_gate_probability)
+    assert outcome.gated and not outcome.record.accepted
+    r_eff = 1e-4 * outcome.record.nis / gate
+    assert flt.state.v_eb_n[0] == pytest.approx(1e-4 / (1e-4 + r_eff) * 1.0)
+    # a non-finite innovation is recorded and not applied
+    before = flt.state.v_eb_n.copy()
+    assert flt.update('wheel', np.array([math.nan]), H, R).correction is None
+    assert np.array_equal(flt.state.v_eb_n, before)
+
+
+def test_correction_reports_the_forward_speed_and_along_track_gravity_change():
+    flt = started_filter(v_eb_n=(1.0, 0.0, 0.0))
+    dx = np.zeros(N_ERR)
+    dx[VEL] = [0.1, 0.0, 0.0]
+    dx[1] = 0.01  # pitch error: gravity along x changes by g * 0.01
+    dx[BA] = [0.002, 0.0, 0.0]
+    c = flt.correct(dx)
+    assert c.dv_fwd_mps == pytest.approx(-0.1, abs=2e-3)
+    # along-track gravity g C_b_n[2, 0] less the bias; before: level and unbiased
+    assert abs(flt.state.C_b_n[2, 0]) == pytest.approx(0.01, rel=1e-3)
+    assert c.da_fwd_mps2 == pytest.approx(9.8 * float(flt.state.C_b_n[2, 0]) - 0.002)
+
+
+def test_forward_speed_model_is_the_forward_row_of_the_constraint_and_carries_R():
+    m = ForwardSpeed(EARTH, np.array([-0.2, 0.1, 0.3]))
+    st = level_state(v_eb_n=(0.5, 0.2, 0.0), heading_rad=0.3)
+    H = m.jacobian(st)
+    assert H.shape == (1, N_ERR)
+    assert np.allclose(H[0, VEL], -st.C_b_n[:, 0])
+    assert np.array_equal(m.covariance(0.04), [[0.04]])
+    assert m.innovation(1.2, 1.0) == pytest.approx([0.2])
+
+
+def test_mean_rate_between_updates():
+    flt = started_filter()
+    f = (-gravity_n(EARTH, LLH[0], LLH[2])).tolist()
+    for w in ([0.1, 0.0, 0.0], [0.3, 0.0, 0.2]):
+        flt.mechanize(f, w, 0.004)
+    w_mean, n = flt.take_mean_rate()
+    assert n == 2 and np.allclose(w_mean, [0.2, 0.0, 0.1])
+    assert flt.take_mean_rate()[1] == 0
+
+
+# ---------------------------------------------------------------------------- history
+def test_history_shifts_the_recorded_speed_by_each_correction_and_keeps_the_free_speed():
+    h = ForwardSpeedHistory((0.0, 0.0, 0.0), horizon_s=1.0)
+    for k in range(5):  # 1.0 m/s north, heading north
+        h.record(k * 100_000_000, level_state(v_eb_n=(1.0, 0.0, 0.0)), [0.0, 0.0, 0.0], 0.1)
+    h.apply(Correction(0.2, 0.0), aid=False)
+    at = h.at(150_000_000)
+    assert at.v_fwd_mps == pytest.approx(1.2) and at.v_free_mps == pytest.approx(1.0)
+    # a wheel-aid correction stays out of the free speed, also its acceleration later on
+    h.apply(Correction(-0.1, 0.5), aid=True)
+    h.record(500_000_000, level_state(v_eb_n=(1.1, 0.0, 0.0)), [0.0, 0.0, 0.0], 0.1)
+    _, newest = h.newest()
+    assert newest.v_fwd_mps == pytest.approx(1.1)
+    assert newest.v_free_mps == pytest.approx(1.1 - (-0.1 + 0.5 * 0.1))
+    assert newest.aid_accel_mps2 == 0.5
+    assert h.at(-1) is None and h.at(600_000_000) is None
+
+
+def test_history_keeps_its_horizon_and_interpolates():
+    h = ForwardSpeedHistory((0.0, 0.0, 0.0), horizon_s=0.25)
+    for k in range(6):
+        h.record(k * 100_000_000, level_state(v_eb_n=(0.1 * k, 0.0, 0.0)), [0.0, 0.0, 0.1],
+                 0.1)
+    assert len(h) == 3  # 0.3, 0.4, 0.5 s
+    assert h.at(350_000_000).v_fwd_mps == pytest.approx(0.35)
+    assert h.at(350_000_000).yaw_rate_b_rps == pytest.approx(0.1)
+    h.clear()
+    assert len(h) == 0 and h.at(500_000_000) is None
+
+
+# ---------------------------------------------------------------------------- supervisor
+def test_filter_verdicts():
+    p = Params()
+    st, P = level_state(), P0.copy()
+    assert check_filter(p, st, P) == check_filter(p, st, P)
+    ok = check_filter(p, st, P)
+    assert not ok.reset and ok.repaired_P is None and ok.recover_reason is None
+    bad = P.copy()
+    bad[0, 0] = math.nan
+    assert check_filter(p, st, bad).reset
+    lost = P.copy()
+    lost[3, 3] = -1e-3
+    v = check_filter(p, st, lost)
+    assert np.linalg.eigvalsh(v.repaired_P).min() > 0.0 and v.recover_reason is None
+    fast = level_state(v_eb_n=(3.0 * p.max_wheel_speed_mps, 0.0, 0.0))
+    v = check_filter(p, fast, P)
+    assert v.recover_reason.startswith('divergence') and v.b_a is None
+    biased = level_state()
+    biased.b_g = np.array([0.0, 0.0, 20.0 * p.initial_gyro_bias_std])
+    v = check_filter(p, biased, P)
+    assert 'biases out of bounds' in v.recover_reason
+    assert v.b_g[2] == pytest.approx(p.initial_gyro_bias_std)
+    assert biased.b_g[2] > p.initial_gyro_bias_std  # decided, not done
+
+
+def test_imu_step_decisions_and_counts():
+    p = Params()
+    sup = Supervisor(p)
+    f, w = [0.0, 0.0, -9.8], [0.0, 0.0, 0.0]
+    assert sup.imu_step(1, 0.004, f, w, True) is GapAction.NONE
+    gap = 0.5 * (p.max_imu_gap_s + p.recovery_gap_s)
+    assert sup.imu_step(2, gap, f, w, True) is GapAction.INTERRUPT
+    assert sup.imu_step(3, 2.0 * p.recovery_gap_s, f, w, True) is GapAction.RECOVER
+    assert sup.imu_step(4, 2.0 * p.recovery_gap_s, f, w, False) is GapAction.INTERRUPT
+    assert sup.counters['imu_gaps'] == 3
+    assert [t for t, _ in sup.events] == [2, 3, 4]
+
+
+def test_recovery_window_and_wheel_timeout():
+    p = Params()
+    sup = Supervisor(p)
+    sup.start_recovery(0, 'IMU gap')
+    end = int(p.recovery_s * 1e9)
+    assert sup.recovering(end - 1) and not sup.recovering(end)
+    assert sup.counters['recoveries'] == 1
+    timeout = int(p.wheel_timeout_s * 1e9)
+    assert sup.wheels_stale(timeout, 0) is None
+    assert sup.wheels_stale(timeout + 1, 0) == timeout + 1  # no wheel data at all
+    assert sup.wheels_stale(timeout + 2, 0) is None  # once per timeout
+    assert sup.accept_wheel(WheelSample(timeout + 3, 0.5), timeout + 2)
+    assert not sup.accept_wheel(WheelSample(timeout + 3, 0.5), timeout + 3)  # not after it
+    assert not sup.accept_wheel(WheelSample(timeout + 4, math.inf), timeout + 4)
+    assert sup.wheels_stale(2 * timeout + 3, 0) is None
+    assert sup.wheels_stale(2 * timeout + 4, 0) == 2 * timeout + 4
+    assert sup.counters['wheel_samples'] == 1 and sup.counters['wheel_rejected'] == 2
+
+
+def test_wheel_timeout_is_judged_on_arrivals_and_reported_in_the_wheel_clock():
+    """Wheel stamps 0.7 s behind the IMU (timeout 0.5 s) arriving every 20 ms: no dropout.
+    When they stop, "unknown" once per timeout, stamped in the wheel clock."""
+    sup = Supervisor(Params(wheel_timeout_s=0.5))
+    lag, step = 700_000_000, 20_000_000
+    for k in range(100):
+        imu_now = 1_000_000_000 + k * step
+        assert sup.accept_wheel(WheelSample(imu_now - lag, 0.5), imu_now)
+        assert sup.wheels_stale(imu_now + step // 2, 0) is None
+    assert sup.wheel_arrival_ns == imu_now
+    stale = sup.wheels_stale(imu_now + 600_000_000, 0)
+    assert stale == imu_now - lag + 600_000_000
+
+
+# ---------------------------------------------------------------------------- wheel aid, outputs
+def test_wheel_aid_decisions():
+    hold, off = WheelAid(Params()), WheelAid(Params(wheel_aid='off'))
+    d = hold.reanchor(1.0, turning=False)
+    assert d.z_mps == 1.0 and d.repair and not d.anchor
+    assert d.var_mps2 == pytest.approx(Params().wheel_aid_std ** 2 + 0.1 ** 2)
+    assert hold.reanchor(1.0, turning=True) is None
+    assert off.reanchor(1.0, turning=False) is None
+    wheel = WheelSample(1, 1.0)
+    est = slip_estimate(wheel, 0.9, 0.0, 1e-4, Params(), False, 1.0)
+    assert off.decide(wheel, None, est, np.eye(3), False) is None
+
+
+@pytest.mark.parametrize('v, w, s', [(0.8, 1.0, 0.2), (1.0, 0.8, -0.2), (1.0, 1.0, 0.0)])
+def test_slip_output_is_eq_1_with_its_class(v, w, s):
+    est = slip_estimate(WheelSample(7, w, w + 0.1, w - 0.1), v, 0.0, 1e-4, Params(), False, 1.0)
+    assert est.slip_ratio == pytest.approx(s)
+    assert est.slip_class == (1 if abs(s) <= 0.2 + 1e-12 else 2)
+    assert est.body_speed_std_mps == pytest.approx(0.01)
+    assert est.slip_ratio_left is not None and est.stamp_ns == 7
+    at_rest = slip_estimate(WheelSample(7, w), v, 0.0, 1e-4, Params(), True, 1.0)
+    assert at_rest.slip_class == 0 and at_rest.slip_ratio == 0.0
+    unknown = unknown_slip(7, w)
+    assert unknown.slip_class == -1 and math.isnan(unknown.slip_ratio)
+    assert slip_before_alignment(WheelSample(7, 0.0), Params(), True).slip_class == 0
+    assert slip_before_alignment(WheelSample(7, w), Params(), True).slip_class == -1
+
+
+def test_imu_rate_is_the_median_of_the_first_intervals():
+    rate = ImuRate(learn_samples=3)
+    assert [rate.add(dt) for dt in (0.01, 0.03, 0.02)] == [False, False, True]
+    assert rate.dt_s == 0.02
+    assert not rate.add(0.03) and rate.dt_s == pytest.approx(0.0201)
+
+
+def test_removed_parameters_are_ignored_unknown_ones_refused():
+    assert 'max_wheel_latency_s' in REMOVED_PARAMETERS
+    assert Params.from_dict({'max_wheel_latency_s': 0.5}) == Params()
+    with pytest.raises(ParameterError, match='unknown parameter'):
+        Params.from_dict({'max_wheel_latency': 0.5})
+    assert BG.start == 12 and POS.start == 6  # the layout these tests index by hand
+
+
+def test_relevel_after_a_recovery_takes_the_tilt_from_the_specific_force():
+    """A state whose attitude was kept across a long gap (level, heading 1 rad) while the
+    rover now climbs at 10 deg: re-levelled to 10 deg pitch, heading and position kept,
+    velocity from the rim speed; position variance not shrunk."""
+    from slip_estimator.core.alignment import AlignmentStart, relevel
+    from slip_estimator.core.frames import dcm_to_rpy
+
+    p = Params()
+    st = level_state(heading_rad=1.0)
+    pitch = math.radians(10.0)
+    f_b = np.array([9.8 * math.sin(pitch), 0.0, -9.8 * math.cos(pitch)])  # FRD, nose up
+    P = P0.copy()
+    P[POS, POS] *= 100.0
+    P_new = relevel(st, P, AlignmentStart(f_b, None, 0.4), p, EARTH)
+    roll, pitch_est, yaw = dcm_to_rpy(st.C_b_n)
+    assert pitch_est == pytest.approx(pitch, abs=1e-9) and roll == pytest.approx(0.0, abs=1e-9)
+    assert yaw == pytest.approx(1.0)
+    assert np.allclose(st.v_eb_n, st.C_b_n[:, 0] * 0.4)
+    assert np.array_equal(st.llh, LLH)
+    assert np.all(np.diag(P_new)[POS] >= np.diag(P)[POS])
+    assert np.allclose(P_new, P_new.T, rtol=0, atol=1e-18)
+    assert np.linalg.eigvalsh(P_new).min() > -1e-12  # PSD to round-off (max variance 1)
