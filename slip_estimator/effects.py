@@ -34,7 +34,8 @@ import numpy as np
 from slip_estimator.core import frames
 from slip_estimator.core.estimator import SlipEstimator
 from slip_estimator.core.params import Params
-from slip_estimator.core.types import ImuSample, SlipEstimate, WheelSample
+from slip_estimator.core.types import ImuSample, SlipEstimate
+from slip_estimator.streams import SensorData, feed, from_pathfinder, records
 
 Window = tuple[float, float, float]
 """(start s, end s) relative to a reference time, and the wheel-speed factor inside."""
@@ -128,31 +129,17 @@ def body_factor(t_rel_s: np.ndarray, windows: Sequence[Window],
     return m
 
 
-@dataclass(frozen=True)
-class SensorData:
-    """Sensor streams in the estimator's body frame.
-
-    imu_ns : IMU stamps, ns (N,); f_ib_b, omega_ib_b : (N, 3) in FRD body axes, SI.
-    wheel_ns : wheel stamps, ns (M,); rim_mps : (M, 4) rim speeds, order FL, FR, RL, RR.
-    """
-
-    imu_ns: np.ndarray
-    f_ib_b: np.ndarray
-    omega_ib_b: np.ndarray
-    wheel_ns: np.ndarray
-    rim_mps: np.ndarray
-
-    def with_effects(self, effects: Effects, windows: Sequence[Window] = (),
-                     t0_ns: int = 0) -> SensorData:
-        """The same drive with injected slip (windows relative to ``t0_ns``) and effects."""
-        R = frames.rpy_to_dcm(*np.radians(effects.imu_rotation_deg))
-        t_rel = (self.wheel_ns - t0_ns) * 1e-9
-        scale = window_factor(t_rel, windows) * (1.0 + effects.wheel_radius_error)
-        return SensorData(
-            self.imu_ns, self.f_ib_b @ R.T,
-            (1.0 + effects.gyro_scale_error) * self.omega_ib_b @ R.T,
-            self.wheel_ns + round(effects.wheel_time_offset_s * 1e9),
-            self.rim_mps * scale[:, None])
+def with_effects(data: SensorData, effects: Effects, windows: Sequence[Window] = (),
+                 t0_ns: int = 0) -> SensorData:
+    """The same drive with injected slip (windows relative to ``t0_ns``) and effects."""
+    R = frames.rpy_to_dcm(*np.radians(effects.imu_rotation_deg))
+    t_rel = (data.wheel_ns - t0_ns) * 1e-9
+    scale = window_factor(t_rel, windows) * (1.0 + effects.wheel_radius_error)
+    return dataclasses.replace(
+        data, f_ib_b=data.f_ib_b @ R.T,
+        omega_ib_b=(1.0 + effects.gyro_scale_error) * data.omega_ib_b @ R.T,
+        wheel_ns=data.wheel_ns + round(effects.wheel_time_offset_s * 1e9),
+        rim_mps=data.rim_mps * scale[:, None])
 
 
 def inject_body_slip(data: SensorData, t0_ns: int, windows: Sequence[Window],
@@ -208,39 +195,28 @@ def gnss_speed(log: Any, t_s: np.ndarray, window_s: float = 1.0) -> np.ndarray:
 def run_core(params: Params, data: SensorData, odometry_every: int = 10,
              estimator: type[SlipEstimator] = SlipEstimator
              ) -> tuple[SlipEstimator, list[SlipEstimate], np.ndarray]:
-    """Feed the data through ``estimator`` (a :class:`SlipEstimator`) in stamp order.
+    """Feed the data through ``estimator`` (a :class:`SlipEstimator`) in stamp order
+    (:func:`slip_estimator.streams.feed`).
 
     Returns the estimator, every slip estimate, and (K, 2) rows of (stamp ns, odometry body-x
     speed m/s) every ``odometry_every`` IMU samples after alignment.
     """
     est = estimator(params)
-    out: list[SlipEstimate] = []
     odo = []
-    rim, wns = data.rim_mps, data.wheel_ns
-    j, m = 0, len(wns)
-    for i, stamp in enumerate(data.imu_ns.tolist()):
-        while j < m and wns[j] < stamp:
-            x = rim[j]
-            out += est.add_wheel(WheelSample(int(wns[j]), float(x.mean()),
-                                             float(x[[0, 2]].mean()), float(x[[1, 3]].mean())))
-            j += 1
-        out += est.add_imu(ImuSample(stamp, data.f_ib_b[i], data.omega_ib_b[i]))
-        if i % odometry_every == 0 and est.aligned:
-            odo.append((stamp, float(est.odometry().v_ob_b[0])))
+    count = [0]
+
+    def sample_odometry(s: ImuSample) -> None:
+        if count[0] % odometry_every == 0 and est.aligned:
+            odo.append((s.stamp_ns, float(est.odometry().v_ob_b[0])))
+        count[0] += 1
+
+    out = feed(est, records(data), sample_odometry)
     return est, out, np.array(odo, dtype=float).reshape(-1, 2)
 
 
 # --------------------------------------------------------------------------------------------
 # Real logs
 # --------------------------------------------------------------------------------------------
-def pathfinder_data(log: Any, params: Params) -> SensorData:
-    """A Pathfinder log's streams as the node would see them with ``params``."""
-    C = frames.imu_to_body_dcm(params.imu_to_base_rpy)
-    return SensorData(np.round(log.imu_t_s * 1e9).astype(np.int64), log.f_ib_imu @ C.T,
-                      log.omega_ib_imu @ C.T, np.round(log.wheel_t_s * 1e9).astype(np.int64),
-                      log.wheel_rate_rps * params.wheel_radius)
-
-
 @dataclass(frozen=True)
 class LogScore:
     """Slip and speed figures of one core run on a real log against RTK truth."""
@@ -267,8 +243,8 @@ def score_on_log(log: Any, params: Params, windows: Sequence[Window] = (),
     from slip_estimator.pathfinder import gnss_enu
 
     t0_ns = round(float(log.imu_t_s[0]) * 1e9)
-    clean = pathfinder_data(log, params)
-    data = clean.with_effects(effects, windows, t0_ns)
+    clean = from_pathfinder(log, params)
+    data = with_effects(clean, effects, windows, t0_ns)
     imu_t_s = clean.imu_ns * 1e-9
     deficit = np.zeros(len(imu_t_s))
     if body_windows:
@@ -291,11 +267,3 @@ def score_on_log(log: Any, params: Params, windows: Sequence[Window] = (),
     rmse = float(np.sqrt(np.mean((odo[driving, 1] - v_true[driving]) ** 2))) \
         if driving.any() else math.nan
     return LogScore(slip, rmse, est)
-
-
-def simulation_data(result: Any, params: Params) -> SensorData:
-    """A simulated drive's streams (``sim.simulate`` result) as the node would see them."""
-    C = frames.imu_to_body_dcm(params.imu_to_base_rpy)
-    return SensorData(result.stamps_ns(result.imu_t_s), result.f_ib_imu @ C.T,
-                      result.omega_ib_imu @ C.T, result.stamps_ns(result.wheel_t_s),
-                      result.wheel_rate_rps * params.wheel_radius)

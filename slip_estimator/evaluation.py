@@ -36,11 +36,9 @@ from typing import Any
 import numpy as np
 
 from slip_estimator.core.slip import slip_class_array, slip_ratio_array
-from slip_estimator.core.types import SLIP_CLASS_NAMES, SLIP_CLASS_UPPER_BOUNDS
+from slip_estimator.core.types import SLIP_CLASS_NAMES
 
 N_CLASSES = len(SLIP_CLASS_NAMES)
-SIGNIFICANT_SLIP = SLIP_CLASS_UPPER_BOUNDS[0]
-"""|s| above 0.2 is 'significant' slip (paper sec. 2, drawbar-pull argument)."""
 
 
 # --------------------------------------------------------------------------------------------

@@ -297,6 +297,22 @@ def gnss_enu(log: PathfinderLog) -> np.ndarray:
     return np.array([llh_to_local_enu(EARTH, p, log.gnss_llh[0]) for p in log.gnss_llh])
 
 
+def wheel_differential_rps(log: PathfinderLog) -> np.ndarray:
+    """Right minus left wheel rate (each side summed over its wheels; sides from
+    :data:`WHEEL_JOINT_NAMES`), rad/s, at the wheel times: the yaw-rate signal of the wheels."""
+    from slip_estimator.streams import wheel_side
+
+    r = log.wheel_rate_rps
+    sides = [wheel_side(n) for n in WHEEL_JOINT_NAMES]
+    right = [k for k, s in enumerate(sides) if s == 'right']
+    diff = r[:, right[0]]
+    for k in right[1:]:
+        diff = diff + r[:, k]
+    for k in (k for k, s in enumerate(sides) if s == 'left'):
+        diff = diff - r[:, k]
+    return diff
+
+
 def wheel_imu_lag(log: PathfinderLog, max_lag_s: float = 0.4) -> tuple[float, float]:
     """Lag of the wheel stamps behind the IMU, s, and the correlation at that lag.
 
@@ -308,8 +324,7 @@ def wheel_imu_lag(log: PathfinderLog, max_lag_s: float = 0.4) -> tuple[float, fl
 
     t = log.wheel_t_s
     inside = (t > log.imu_t_s[0] + 1.0) & (t < log.imu_t_s[-1] - 1.0)
-    r = log.wheel_rate_rps
-    diff = r[:, 1] + r[:, 3] - r[:, 0] - r[:, 2]
+    diff = wheel_differential_rps(log)
     # z down: a left (counter-clockwise) turn is a negative Gz and a positive R - L.
     return best_lag(log.imu_t_s, -log.omega_ib_imu[:, 2], t[inside], diff[inside], max_lag_s)
 
@@ -496,9 +511,10 @@ def params_notes(facts: LogFacts, measured_noise: bool = False,
 
 
 def _stamp(msg_header, t_s: float) -> int:
+    from slip_estimator.ros.convert import ns_to_stamp
+
     ns = round(t_s * 1e9)
-    msg_header.stamp.sec = ns // 1_000_000_000
-    msg_header.stamp.nanosec = ns % 1_000_000_000
+    msg_header.stamp = ns_to_stamp(ns)
     return ns
 
 

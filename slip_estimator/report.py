@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from slip_estimator.evaluation import RunData, RunEvaluation
+from slip_estimator.ros.convert import header_stamp_ns
 
 EST_SLIP_TOPIC = '/slip_estimator/slip'
 EST_SLIP_VECTOR_TOPIC = '/slip_estimator/slip_ratio'
@@ -53,11 +54,8 @@ def _first_line(exc: BaseException) -> str:
     return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
-def _stamp_ns(msg: Any) -> int:
-    return int(msg.header.stamp.sec) * 1_000_000_000 + int(msg.header.stamp.nanosec)
-
-
-def _num(text: str) -> float:
+def number(text: Any) -> float:
+    """A diagnostic value as a float ('unknown', None or garbage: NaN)."""
     try:
         return float(text)
     except (TypeError, ValueError):
@@ -85,7 +83,7 @@ def _read(path: str | Path, topics: set[str], label: str, progress: bool) -> dic
 def _odometry_arrays(msgs: list) -> tuple[np.ndarray, ...] | tuple[None, ...]:
     if not msgs:
         return None, None, None, None
-    t = np.array([_stamp_ns(m) for m in msgs], dtype=np.int64)
+    t = np.array([header_stamp_ns(m) for m in msgs], dtype=np.int64)
     p = np.array([[m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z]
                   for m in msgs])
     q = np.array([[m.pose.pose.orientation.w, m.pose.pose.orientation.x,
@@ -116,13 +114,14 @@ def load_run(input_bag: str | Path, output_bag: str | Path, *, wheel_radius_m: f
             kv = {k.key: k.value for k in st.values}
             if 'slip_ratio' not in kv:
                 continue
-            cls = _num(kv.get('slip_class', 'unknown'))
-            rows.append((_stamp_ns(m), _num(kv['slip_ratio']), _num(kv.get('slip_ratio_std')),
-                         int(cls) if math.isfinite(cls) else -1, _num(kv.get('body_speed')),
-                         _num(kv.get('wheel_speed'))))
+            cls = number(kv.get('slip_class', 'unknown'))
+            rows.append((header_stamp_ns(m), number(kv['slip_ratio']),
+                         number(kv.get('slip_ratio_std')),
+                         int(cls) if math.isfinite(cls) else -1, number(kv.get('body_speed')),
+                         number(kv.get('wheel_speed'))))
             break
     if not rows:
-        rows = [(_stamp_ns(m), m.vector.x, m.vector.y, round(m.vector.z), float('nan'),
+        rows = [(header_stamp_ns(m), m.vector.x, m.vector.y, round(m.vector.z), float('nan'),
                  float('nan')) for m in out[EST_SLIP_VECTOR_TOPIC]]
     rows.sort(key=lambda r: r[0])
     cols = list(zip(*rows)) if rows else [[]] * 6
@@ -131,21 +130,21 @@ def load_run(input_bag: str | Path, output_bag: str | Path, *, wheel_radius_m: f
 
     eo = _odometry_arrays(out[EST_ODOM_TOPIC])
     to = _odometry_arrays(inp[TRUTH_ODOM_TOPIC])
-    ts = sorted(inp[TRUTH_SLIP_TOPIC], key=_stamp_ns)
-    truth_t = np.array([_stamp_ns(m) for m in ts], dtype=np.int64) if ts else None
+    ts = sorted(inp[TRUTH_SLIP_TOPIC], key=header_stamp_ns)
+    truth_t = np.array([header_stamp_ns(m) for m in ts], dtype=np.int64) if ts else None
     truth_s = np.array([m.vector.x for m in ts]) if ts else None
     truth_c = np.array([round(m.vector.z) for m in ts]) if ts else None
 
-    gnss = sorted((m for m in inp[GNSS_TOPIC] if m.status.status >= 0), key=_stamp_ns)
+    gnss = sorted((m for m in inp[GNSS_TOPIC] if m.status.status >= 0), key=header_stamp_ns)
     g_t = g_llh = g_sig = None
     if gnss:
-        g_t = np.array([_stamp_ns(m) for m in gnss], dtype=np.int64)
+        g_t = np.array([header_stamp_ns(m) for m in gnss], dtype=np.int64)
         g_llh = np.array([[math.radians(m.latitude), math.radians(m.longitude), m.altitude]
                           for m in gnss])
         g_sig = np.array([math.sqrt(0.5 * (m.position_covariance[0] + m.position_covariance[4]))
                           if m.position_covariance_type > 0 else float('nan') for m in gnss])
     w_t = w_v = None
-    joints = sorted(inp[JOINT_TOPIC], key=_stamp_ns)
+    joints = sorted(inp[JOINT_TOPIC], key=header_stamp_ns)
     if joints:
         names = wheel_joint_names or list(joints[0].name)
         w_t, w_v = [], []
@@ -153,7 +152,7 @@ def load_run(input_bag: str | Path, output_bag: str | Path, *, wheel_radius_m: f
             rates = dict(zip(m.name, m.velocity))
             vals = [rates[n] for n in names if n in rates]
             if vals:
-                w_t.append(_stamp_ns(m))
+                w_t.append(header_stamp_ns(m))
                 w_v.append(wheel_radius_m * float(np.mean(vals)))
         w_t, w_v = np.array(w_t, dtype=np.int64), np.array(w_v)
     return RunData(est_t, est[0], est[1], est[2].astype(int) if len(est[2]) else
@@ -171,12 +170,20 @@ def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Pat
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    from slip_estimator.core.types import SLIP_CLASS_NAMES
-
     report_dir.mkdir(parents=True, exist_ok=True)
     files = []
-    t0 = run.est_slip_stamp_ns[0] if len(run.est_slip_stamp_ns) else 0
+    for name, draw in (('trajectory', _trajectory_figure), ('slip_vs_truth', _slip_vs_truth_figure),
+                       ('velocity_error_hist', _velocity_error_hist_figure),
+                       ('confusion_matrix', _confusion_matrix_figure)):
+        fig = draw(run, ev, plt)
+        files.append(report_dir / f'{name}.png')
+        fig.savefig(files[-1], dpi=120)
+        plt.close(fig)
+    return files
 
+
+def _trajectory_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
+    """Estimated and true trajectory in the odom frame."""
     fig, ax = plt.subplots(figsize=(7, 7))
     if ev.truth_p_m is not None:
         tp = ev.truth_p_m
@@ -195,10 +202,12 @@ def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Pat
     ax.grid(True)
     ax.legend()
     ax.set_title('Trajectory (odom frame, ENU)')
-    files.append(report_dir / 'trajectory.png')
-    fig.savefig(files[-1], dpi=120)
-    plt.close(fig)
+    return fig
 
+
+def _slip_vs_truth_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
+    """Slip ratio and speeds over time, estimate against truth."""
+    t0 = run.est_slip_stamp_ns[0] if len(run.est_slip_stamp_ns) else 0
     fig, axs = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     te = (run.est_slip_stamp_ns - t0) * 1e-9
     if ev.gnss_truth is not None:
@@ -229,18 +238,22 @@ def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Pat
     axs[1].set_ylabel('speed [m/s]')
     axs[1].legend()
     axs[1].grid(True)
-    files.append(report_dir / 'slip_vs_truth.png')
-    fig.savefig(files[-1], dpi=120)
-    plt.close(fig)
+    return fig
 
+
+def _velocity_error_hist_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
+    """Histogram of the forward-speed error."""
     fig, ax = plt.subplots(figsize=(6, 4))
     if ev.speed is not None and ev.speed.n:
         ax.hist(ev.speed.errors, bins=50, color='tab:blue')
         ax.set_title(f'forward-speed error: RMSE {ev.speed.rmse:.3f} m/s (n={ev.speed.n})')
     ax.set_xlabel('v_est - v_truth [m/s]')
-    files.append(report_dir / 'velocity_error_hist.png')
-    fig.savefig(files[-1], dpi=120)
-    plt.close(fig)
+    return fig
+
+
+def _confusion_matrix_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
+    """The slip confusion matrix, % of each truth class."""
+    from slip_estimator.core.types import SLIP_CLASS_NAMES
 
     fig, ax = plt.subplots(figsize=(6, 5))
     if ev.slip is not None:
@@ -256,10 +269,7 @@ def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Pat
         ax.set_ylabel('estimated class')
         ax.set_title(f'balanced accuracy {ev.slip.balanced_accuracy:.3f}, '
                      f'coverage {ev.slip.coverage:.3f}')
-    files.append(report_dir / 'confusion_matrix.png')
-    fig.savefig(files[-1], dpi=120)
-    plt.close(fig)
-    return files
+    return fig
 
 
 # --------------------------------------------------------------------------------------------

@@ -49,6 +49,9 @@ from slip_estimator.core.types import (
     SlipEstimate,
     WheelSample,
 )
+from slip_estimator.ros import msgbuild
+from slip_estimator.ros.msgbuild import build, fields_getter, slot_of
+from slip_estimator.streams import wheel_side
 
 NS_PER_S = 1_000_000_000
 
@@ -88,30 +91,6 @@ def ns_to_stamp(stamp_ns: int) -> Time:
 def header_stamp_ns(msg: Any) -> int:
     """``header.stamp`` of a stamped message, ns."""
     return stamp_to_ns(msg.header.stamp)
-
-
-# --- fast field access ----------------------------------------------------------------------------
-def _slot(cls: type, name: str) -> str:
-    """The attribute that stores field ``name`` of a generated message class: the slot
-    ``'_' + name`` behind the Python property where there is one (reading it skips the
-    property call), else ``name``."""
-    return '_' + name if '_' + name in getattr(cls, '__slots__', ()) else name
-
-
-def _slot_path(cls: type, path: str) -> str:
-    """:func:`_slot` along a dotted field path (``'header.stamp.sec'``)."""
-    out, obj = [], cls()
-    for name in path.split('.'):
-        slot = _slot(type(obj), name)
-        out.append(slot)
-        obj = getattr(obj, slot)
-    return '.'.join(out)
-
-
-def fields_getter(cls: type, *paths: str) -> Callable[[Any], tuple]:
-    """One ``attrgetter`` for several dotted field paths of message class ``cls`` (reading
-    the slots directly): returns a tuple of the values."""
-    return attrgetter(*(_slot_path(cls, p) for p in paths))
 
 
 # --- inputs ---------------------------------------------------------------------------------------
@@ -163,15 +142,6 @@ _IMU_COVARIANCES = fields_getter(Imu, 'linear_acceleration_covariance',
                                  'angular_velocity_covariance')
 _IMU_ORIENTATION = fields_getter(Imu, 'orientation_covariance', 'orientation.w', 'orientation.x',
                                  'orientation.y', 'orientation.z')
-
-
-def wheel_side(joint_name: str) -> str | None:
-    """'left', 'right' or None from a joint name (case-insensitive substring)."""
-    name = joint_name.lower()
-    is_left, is_right = 'left' in name, 'right' in name
-    if is_left == is_right:
-        return None
-    return 'left' if is_left else 'right'
 
 
 class JointRatesFromPositions:
@@ -296,44 +266,6 @@ def format_value(value: Any) -> str:
 def key_values(values: Mapping[str, Any]) -> list[KeyValue]:
     """KeyValues of a mapping, values formatted with :func:`format_value`."""
     return [build(KeyValue, str(k), format_value(v)) for k, v in values.items()]
-
-
-# --- message building -------------------------------------------------------------------------
-def build(cls: type, *values: Any) -> Any:
-    """A message of ``cls`` with its fields, in declaration order, set to ``values``.
-
-    The generated constructor builds (and then discards) a default of every nested message
-    and checks each keyword, which costs more than the whole odometry computation; ``build``
-    writes the slots directly, through a small function made once per class (as dataclasses
-    make their ``__init__``). At import it is checked once (:func:`_fast_build_works`) that
-    both ways give equal messages, else the constructors are used.
-    """
-    if not _FAST_BUILD:
-        return cls(**dict(zip(cls.get_fields_and_field_types(), values)))
-    make = _BUILDERS.get(cls)
-    if make is None:
-        make = _BUILDERS[cls] = _slot_builder(cls)
-    return make(*values)
-
-
-_BUILDERS: dict[type, Callable[..., Any]] = {}
-
-
-def _slot_builder(cls: type) -> Callable[..., Any]:
-    """``make(field_1, ..., field_n)`` storing each field in its slot; Jazzy's classes also
-    get the constructor's ROS_PYTHON_CHECK_FIELDS flag."""
-    slots = [_slot(cls, name) for name in cls.get_fields_and_field_types()]
-    if any(not slot.startswith('_') or not slot[1:].isidentifier() for slot in slots):
-        raise TypeError(f'{cls.__name__}: fields not stored in slots')
-    args = [f'v{i}' for i in range(len(slots))]
-    lines = [f'def make({", ".join(args)}):', '    m = new(cls)']
-    lines += [f'    m.{slot} = {arg}' for slot, arg in zip(slots, args)]
-    if '_check_fields' in cls.__slots__:
-        lines.append('    m._check_fields = check')
-    lines.append('    return m')
-    scope = {'new': cls.__new__, 'cls': cls, 'check': _CHECK_FIELDS}
-    exec('\n'.join(lines), scope)  # noqa: S102 -- source made above from the class's slots
-    return scope['make']
 
 
 def _stamped_header(stamp_ns: int, frame_id: str = '') -> Header:
@@ -464,7 +396,7 @@ def _collect_fields(cls: type, prefix: str, kinds: dict[str, list[str]]) -> None
     for name, kind in cls.get_fields_and_field_types().items():
         if kind.split('[')[0].removeprefix('sequence<').rstrip('>') in _INT_TYPES:
             continue
-        slot = _slot(cls, name)
+        slot = slot_of(cls, name)
         value, path = getattr(sample, slot), prefix + slot
         if isinstance(value, float):
             kinds['floats'].append(path)
@@ -563,32 +495,18 @@ def text_is_finite(text: str) -> bool:
         return True
 
 
-def _fast_build_works() -> bool:
-    """Every output converter gives the same message (==, repr) through the slots as through
-    the constructors."""
-    global _FAST_BUILD
+def _sample_outputs() -> list[Any]:
+    """Every output converter once, for :func:`msgbuild.enable_fast_build`'s check."""
     odo = OdometryEstimate(1_234_567_890_123, np.array([1.0, -2.0, 3.0]),
                            np.array([0.5, 0.5, -0.5, 0.5]), np.array([0.1, 0.2, 0.3]),
                            np.array([-0.01, 0.02, -0.03]), np.arange(36.0).reshape(6, 6),
                            -np.arange(36.0).reshape(6, 6))
     slip = SlipEstimate(-1_500_000_000, 0.25, 0.01, 2, 0.4, 0.01, 0.55, 0.2, 0.3)
     health = Health(1, 'running', {'a': 1.5, 'b': [0.1, 0.2], 'c': None})
-
-    def outputs() -> list[Any]:
-        return [odometry_to_msg(odo, 'odom', 'base_link'),
-                slip_to_diagnostic_array(slip, 'base_link'), slip_to_vector3(slip, 'base_link'),
-                health_to_diagnostic_array(health, 7, 'base_link', {'n': 3}),
-                stale_diagnostic_array('no IMU data', 8, 'base_link')]
-
-    try:
-        _FAST_BUILD = False
-        reference = outputs()
-        _FAST_BUILD = True
-        return all(a == b and repr(a) == repr(b) for a, b in zip(outputs(), reference))
-    except Exception:  # noqa: BLE001 -- any surprise: use the constructors
-        return False
+    return [odometry_to_msg(odo, 'odom', 'base_link'),
+            slip_to_diagnostic_array(slip, 'base_link'), slip_to_vector3(slip, 'base_link'),
+            health_to_diagnostic_array(health, 7, 'base_link', {'n': 3}),
+            stale_diagnostic_array('no IMU data', 8, 'base_link')]
 
 
-_CHECK_FIELDS = getattr(Time(), '_check_fields', False)
-_FAST_BUILD = False
-_FAST_BUILD = _fast_build_works()
+msgbuild.enable_fast_build(_sample_outputs)

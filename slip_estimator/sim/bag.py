@@ -48,8 +48,9 @@ ALL_TOPICS = (TOPIC_IMU, TOPIC_JOINTS, TOPIC_WHEEL_ODOM, TOPIC_GNSS, TOPIC_TRUTH
 
 
 def _stamp(msg_header: object, stamp_ns: int) -> None:
-    msg_header.stamp.sec = int(stamp_ns // 1_000_000_000)  # type: ignore[attr-defined]
-    msg_header.stamp.nanosec = int(stamp_ns % 1_000_000_000)  # type: ignore[attr-defined]
+    from slip_estimator.ros.convert import ns_to_stamp
+
+    msg_header.stamp = ns_to_stamp(stamp_ns)  # type: ignore[attr-defined]
 
 
 def _yaw_quat_wxyz(yaw: float) -> tuple[float, float, float, float]:
@@ -83,6 +84,136 @@ def sim_params(result: SimResult, wheel_input: str = 'joint_states',
         wheel_latency_s=0.5 / cfg.rate_wheel_hz)
 
 
+class _SimMessages:
+    """The messages of a simulated drive, one maker per topic (index into its stream)."""
+
+    def __init__(self, result: SimResult, imu_ns: np.ndarray, wheel_ns: np.ndarray,
+                 gnss_ns: np.ndarray, truth_idx: np.ndarray,
+                 profile: RobotProfile | None = None) -> None:
+        cfg = result.config
+        var_w = cfg.imu.gyro_noise_density_rps_rthz ** 2 * cfg.rate_imu_hz
+        var_f = cfg.imu.accel_noise_density_mps2_rthz ** 2 * cfg.rate_imu_hz
+        self.result = result
+        self.imu_ns, self.wheel_ns, self.gnss_ns, self.truth_idx = \
+            imu_ns, wheel_ns, gnss_ns, truth_idx
+        self.half_T = 0.5 * cfg.rover.track_width_m
+        self.gnss_var = np.array([cfg.gnss.horizontal_std_m ** 2,
+                                  cfg.gnss.horizontal_std_m ** 2, cfg.gnss.vertical_std_m ** 2])
+        self.imu_diag_w = [var_w, 0.0, 0.0, 0.0, var_w, 0.0, 0.0, 0.0, var_w]
+        self.imu_diag_f = [var_f, 0.0, 0.0, 0.0, var_f, 0.0, 0.0, 0.0, var_f]
+        self.wheel_speed_var = (1.0 / (cfg.rover.encoder_pulses_per_m / cfg.rate_wheel_hz)) ** 2
+        self.columns = profile.joint_columns if profile else tuple(range(len(WHEEL_JOINT_NAMES)))
+        self.joint_velocities = profile is None or profile.joint_velocities
+        self.f_imu = result.f_ib_imu
+        if profile is not None and profile.imu_gravity_removed:
+            # A driver that subtracts gravity with its own attitude: linear acceleration.
+            C_imu_base = rpy_to_dcm(*cfg.rover.imu_to_base_rpy_rad)
+            up_imu = np.einsum('ij,nkj,k->ni', C_imu_base.T, result.C_base_o,
+                               np.array([0, 0, 1.0]))
+            self.f_imu = self.f_imu - result.gravity_mps2 * up_imu
+
+    def imu(self, i: int) -> Imu:
+        from sensor_msgs.msg import Imu
+
+        m = Imu()
+        _stamp(m.header, int(self.imu_ns[i]))
+        m.header.frame_id = 'imu_link'
+        m.orientation_covariance[0] = -1.0
+        f, w = self.f_imu[i], self.result.omega_ib_imu[i]
+        m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = map(float, w)
+        m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = \
+            map(float, f)
+        m.angular_velocity_covariance = self.imu_diag_w
+        m.linear_acceleration_covariance = self.imu_diag_f
+        return m
+
+    def joints(self, j: int) -> JointState:
+        from sensor_msgs.msg import JointState
+
+        m = JointState()
+        _stamp(m.header, int(self.wheel_ns[j]))
+        m.header.frame_id = 'base_link'
+        m.name = [WHEEL_JOINT_NAMES[k] for k in self.columns]
+        m.position = [float(self.result.wheel_angle_rad[j, k]) for k in self.columns]
+        if self.joint_velocities:
+            m.velocity = [float(self.result.wheel_rate_rps[j, k]) for k in self.columns]
+        return m
+
+    def wheel_odom(self, j: int) -> Odometry:
+        from nav_msgs.msg import Odometry
+
+        m = Odometry()
+        _stamp(m.header, int(self.wheel_ns[j]))
+        m.header.frame_id = 'odom'
+        m.child_frame_id = 'base_link'
+        x, y = self.result.wheel_odom_xy_m[j]
+        m.pose.pose.position.x, m.pose.pose.position.y = float(x), float(y)
+        w, qx, qy, qz = _yaw_quat_wxyz(float(self.result.wheel_odom_yaw_rad[j]))
+        o = m.pose.pose.orientation
+        o.w, o.x, o.y, o.z = w, qx, qy, qz
+        m.twist.twist.linear.x = float(self.result.wheel_odom_speed_mps[j])
+        m.twist.twist.angular.z = float(self.result.wheel_odom_yaw_rate_rps[j])
+        cov = [0.0] * 36
+        cov[0] = self.wheel_speed_var
+        cov[35] = self.wheel_speed_var / self.half_T ** 2
+        for k in (7, 14, 21, 28):
+            cov[k] = 1e6  # vy, vz, wx, wy are not measured by the wheels
+        m.twist.covariance = cov
+        pcov = [0.0] * 36
+        for k in (0, 7, 35):
+            pcov[k] = 1.0  # dead reckoning: unbounded in principle, nominal 1 m / 1 rad
+        for k in (14, 21, 28):
+            pcov[k] = 1e6
+        m.pose.covariance = pcov
+        return m
+
+    def truth_slip(self, j: int) -> Vector3Stamped:
+        from geometry_msgs.msg import Vector3Stamped
+
+        m = Vector3Stamped()
+        _stamp(m.header, int(self.wheel_ns[j]))
+        m.header.frame_id = 'base_link'
+        m.vector.x = float(self.result.slip_true[j])
+        m.vector.y = 0.0
+        m.vector.z = float(self.result.slip_class[j])
+        return m
+
+    def gnss(self, g: int) -> NavSatFix:
+        from sensor_msgs.msg import NavSatFix, NavSatStatus
+
+        m = NavSatFix()
+        _stamp(m.header, int(self.gnss_ns[g]))
+        m.header.frame_id = 'base_link'
+        m.status.status = NavSatStatus.STATUS_FIX
+        m.status.service = NavSatStatus.SERVICE_GPS
+        lat, lon, alt = self.result.gnss_llh[g]
+        m.latitude, m.longitude, m.altitude = float(lat), float(lon), float(alt)
+        var = self.gnss_var
+        m.position_covariance = [float(var[0]), 0.0, 0.0, 0.0, float(var[1]), 0.0,
+                                 0.0, 0.0, float(var[2])]
+        m.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
+        return m
+
+    def truth_odom(self, k: int) -> Odometry:
+        from nav_msgs.msg import Odometry
+
+        i = int(self.truth_idx[k])
+        m = Odometry()
+        _stamp(m.header, int(self.imu_ns[i]))
+        m.header.frame_id = 'odom'
+        m.child_frame_id = 'base_link'
+        p = self.result.p_ob_o[i]
+        m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = map(float, p)
+        q = self.result.q_ob_wxyz[i]
+        o = m.pose.pose.orientation
+        o.w, o.x, o.y, o.z = map(float, q)
+        vb, wb = self.result.v_ob_b[i], self.result.omega_eb_b[i]
+        t = m.twist.twist
+        t.linear.x, t.linear.y, t.linear.z = map(float, vb)
+        t.angular.x, t.angular.y, t.angular.z = map(float, wb)
+        return m
+
+
 _IMU_NOISE_PARAMS = ('accel_noise_density', 'gyro_noise_density', 'accel_bias_psd',
                      'gyro_bias_psd', 'initial_accel_bias_std', 'initial_gyro_bias_std')
 
@@ -110,16 +241,9 @@ def write_sim_bag(result: SimResult, bag_path: str | Path,
     do: joint states of some wheels only, positions without velocities, an IMU without
     gravity, and the params file names its wheel input.
     """
-    from geometry_msgs.msg import Vector3Stamped
-    from nav_msgs.msg import Odometry
-    from sensor_msgs.msg import Imu, JointState, NavSatFix, NavSatStatus
-
     from slip_estimator.bagio import BagWriter
 
     cfg = result.config
-    imu_cfg = cfg.imu
-    var_w = imu_cfg.gyro_noise_density_rps_rthz ** 2 * cfg.rate_imu_hz
-    var_f = imu_cfg.accel_noise_density_mps2_rthz ** 2 * cfg.rate_imu_hz
     imu_ns = result.stamps_ns(result.imu_t_s)
     wheel_ns = result.stamps_ns(result.wheel_t_s)
     gnss_ns = result.stamps_ns(result.gnss_t_s)
@@ -138,111 +262,9 @@ def write_sim_bag(result: SimResult, bag_path: str | Path,
     which = np.concatenate([np.full(len(s), k) for k, (_, s) in enumerate(streams)])
     index = np.concatenate([np.arange(len(s)) for _, s in streams])
     order = np.lexsort((index, which, stamps))
-
-    half_T = 0.5 * cfg.rover.track_width_m
-    gnss_var = np.array([cfg.gnss.horizontal_std_m ** 2, cfg.gnss.horizontal_std_m ** 2,
-                         cfg.gnss.vertical_std_m ** 2])
-    imu_diag_w = [var_w, 0.0, 0.0, 0.0, var_w, 0.0, 0.0, 0.0, var_w]
-    imu_diag_f = [var_f, 0.0, 0.0, 0.0, var_f, 0.0, 0.0, 0.0, var_f]
-    wheel_speed_var = (1.0 / (cfg.rover.encoder_pulses_per_m / cfg.rate_wheel_hz)) ** 2
     counts = {name: 0 for name, _ in streams}
-    columns = profile.joint_columns if profile else tuple(range(len(WHEEL_JOINT_NAMES)))
-    f_imu = result.f_ib_imu
-    if profile is not None and profile.imu_gravity_removed:
-        # A driver that subtracts gravity with its own attitude: linear acceleration.
-        C_imu_base = rpy_to_dcm(*cfg.rover.imu_to_base_rpy_rad)
-        up_imu = np.einsum('ij,nkj,k->ni', C_imu_base.T, result.C_base_o, np.array([0, 0, 1.0]))
-        f_imu = f_imu - result.gravity_mps2 * up_imu
-
-    def imu_msg(i: int) -> Imu:
-        m = Imu()
-        _stamp(m.header, int(imu_ns[i]))
-        m.header.frame_id = 'imu_link'
-        m.orientation_covariance[0] = -1.0
-        f, w = f_imu[i], result.omega_ib_imu[i]
-        m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z = map(float, w)
-        m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z = \
-            map(float, f)
-        m.angular_velocity_covariance = imu_diag_w
-        m.linear_acceleration_covariance = imu_diag_f
-        return m
-
-    def joints_msg(j: int) -> JointState:
-        m = JointState()
-        _stamp(m.header, int(wheel_ns[j]))
-        m.header.frame_id = 'base_link'
-        m.name = [WHEEL_JOINT_NAMES[k] for k in columns]
-        m.position = [float(result.wheel_angle_rad[j, k]) for k in columns]
-        if profile is None or profile.joint_velocities:
-            m.velocity = [float(result.wheel_rate_rps[j, k]) for k in columns]
-        return m
-
-    def wheel_odom_msg(j: int) -> Odometry:
-        m = Odometry()
-        _stamp(m.header, int(wheel_ns[j]))
-        m.header.frame_id = 'odom'
-        m.child_frame_id = 'base_link'
-        x, y = result.wheel_odom_xy_m[j]
-        m.pose.pose.position.x, m.pose.pose.position.y = float(x), float(y)
-        w, qx, qy, qz = _yaw_quat_wxyz(float(result.wheel_odom_yaw_rad[j]))
-        o = m.pose.pose.orientation
-        o.w, o.x, o.y, o.z = w, qx, qy, qz
-        m.twist.twist.linear.x = float(result.wheel_odom_speed_mps[j])
-        m.twist.twist.angular.z = float(result.wheel_odom_yaw_rate_rps[j])
-        cov = [0.0] * 36
-        cov[0] = wheel_speed_var
-        cov[35] = wheel_speed_var / half_T ** 2
-        for k in (7, 14, 21, 28):
-            cov[k] = 1e6  # vy, vz, wx, wy are not measured by the wheels
-        m.twist.covariance = cov
-        pcov = [0.0] * 36
-        for k in (0, 7, 35):
-            pcov[k] = 1.0  # dead reckoning: unbounded in principle, nominal 1 m / 1 rad
-        for k in (14, 21, 28):
-            pcov[k] = 1e6
-        m.pose.covariance = pcov
-        return m
-
-    def truth_slip_msg(j: int) -> Vector3Stamped:
-        m = Vector3Stamped()
-        _stamp(m.header, int(wheel_ns[j]))
-        m.header.frame_id = 'base_link'
-        m.vector.x = float(result.slip_true[j])
-        m.vector.y = 0.0
-        m.vector.z = float(result.slip_class[j])
-        return m
-
-    def gnss_msg(g: int) -> NavSatFix:
-        m = NavSatFix()
-        _stamp(m.header, int(gnss_ns[g]))
-        m.header.frame_id = 'base_link'
-        m.status.status = NavSatStatus.STATUS_FIX
-        m.status.service = NavSatStatus.SERVICE_GPS
-        lat, lon, alt = result.gnss_llh[g]
-        m.latitude, m.longitude, m.altitude = float(lat), float(lon), float(alt)
-        m.position_covariance = [float(gnss_var[0]), 0.0, 0.0, 0.0, float(gnss_var[1]), 0.0,
-                                 0.0, 0.0, float(gnss_var[2])]
-        m.position_covariance_type = NavSatFix.COVARIANCE_TYPE_DIAGONAL_KNOWN
-        return m
-
-    def truth_odom_msg(k: int) -> Odometry:
-        i = int(truth_idx[k])
-        m = Odometry()
-        _stamp(m.header, int(imu_ns[i]))
-        m.header.frame_id = 'odom'
-        m.child_frame_id = 'base_link'
-        p = result.p_ob_o[i]
-        m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z = map(float, p)
-        q = result.q_ob_wxyz[i]
-        o = m.pose.pose.orientation
-        o.w, o.x, o.y, o.z = map(float, q)
-        vb, wb = result.v_ob_b[i], result.omega_eb_b[i]
-        t = m.twist.twist
-        t.linear.x, t.linear.y, t.linear.z = map(float, vb)
-        t.angular.x, t.angular.y, t.angular.z = map(float, wb)
-        return m
-
-    makers = [imu_msg, joints_msg, wheel_odom_msg, truth_slip_msg, gnss_msg, truth_odom_msg]
+    msgs = _SimMessages(result, imu_ns, wheel_ns, gnss_ns, truth_idx, profile)
+    makers = [msgs.imu, msgs.joints, msgs.wheel_odom, msgs.truth_slip, msgs.gnss, msgs.truth_odom]
     with BagWriter(bag_path) as writer:
         for o in order:
             k = int(which[o])

@@ -1,0 +1,121 @@
+"""The bench's plain-text tables: one ``print_<section>`` per section of the JSON report."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+def _table(headers: Sequence[str], rows: Sequence[Sequence[Any]], left: int = 1) -> str:
+    """A plain-text table; the first ``left`` columns are left-aligned, the rest right."""
+    cells = [[str(h) for h in headers]] + [[_fmt(c) for c in r] for r in rows]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(headers))]
+    lines = ['  ' + '  '.join(c.rjust(w) if k >= left else c.ljust(w)
+                              for k, (c, w) in enumerate(zip(r, widths))) for r in cells]
+    lines.insert(1, '  ' + '  '.join('-' * w for w in widths))
+    return '\n'.join(lines)
+
+
+def _fmt(value: Any) -> str:
+    if isinstance(value, float):
+        if np.isnan(value):
+            return 'n/a'
+        if abs(value) >= 1000:
+            return f'{value:,.0f}'
+        if abs(value) >= 10:
+            return f'{value:.1f}'
+        return f'{value:.3f}' if abs(value) < 1 else f'{value:.2f}'
+    return str(value)
+
+
+def print_machine(info: dict[str, Any]) -> None:
+    print('== machine')
+    print(f'  CPU {info["cpu_model"]}, {info["cores"]} cores; Python {info["python"]}, '
+          f'numpy {info["numpy"]}; {info["platform"]}')
+    print(f'  1-min load average at start: {info["loadavg_1min"]:.2f} (other processes share '
+          'the cores; compare runs at similar load)')
+
+
+def print_core(res: dict[str, Any]) -> None:
+    print(f'\n== core throughput (SlipEstimator, {res["scenario"]} scenario seed {res["seed"]}, '
+          f'best of {res["repeats"]}, records built before timing)')
+    print(_table(('path', 'IMU steps', 'data s', 'wall s', 'steps/s', 'us/step', 'x real time'),
+                 [(r['label'], r['imu_steps'], r['data_s'], r['wall_s'], r['steps_per_s'],
+                   r['us_per_step'], r['realtime_ratio']) for r in res['rows']]))
+    print('  x real time = steps/s / 250 Hz')
+
+
+def print_replay(res: dict[str, Any]) -> None:
+    print('\n== offline replay (slip_estimator.replay.replay_bag, best of '
+          f'{res["rows"][0]["repeats"] if res["rows"] else 1} by estimation time)')
+    rows = []
+    for r in res['rows']:
+        io = r['read_s'] + r['write_s']
+        rows.append((r['label'], r['messages_in'], r['messages_out'], r['data_s'], r['wall_s'],
+                     r['realtime_ratio'], r['read_s'], r['write_s'],
+                     f'{100 * io / r["wall_s"]:.0f}%', r['estimation_s'],
+                     f'{100 * r["estimation_s"] / r["wall_s"]:.0f}%',
+                     r['estimation_realtime_ratio']))
+    print(_table(('bag', 'msgs in', 'msgs out', 'data s', 'wall s', 'x real time',
+                  'read+deser s', 'ser+write s', 'bag IO %', 'estimation s', 'est. %',
+                  'est. x real time'), rows))
+    print('  read = read_messages + header-stamp sort; estimation = adapter.on_message '
+          '(convert + core + output messages + NaN guard); write = serialize + write + close')
+    if res.get('pathfinder_skipped'):
+        print(f'  s5t1 skipped: {res["pathfinder_skipped"]}')
+
+
+def print_live(res: dict[str, Any]) -> None:
+    e2e = res['end_to_end']
+    print(f'\n== live node over DDS ({res["duration_s"]:g} s, IMU 250 Hz + JointState 10 Hz '
+          f'with wall-clock stamps, ROS_DOMAIN_ID {res["domain_id"]}, LOCALHOST discovery)')
+    rows = [
+        ('IMU received / sent', f'{res["imu_received"]} / {res["imu_sent"]}'),
+        ('JointState received / sent', f'{res["wheel_received"]} / {res["wheel_sent"]}'),
+        ('IMU stamp gaps (node)', res['imu_stamp_gaps']),
+        ('publisher late sends (max ms)',
+         f'{res["publisher_late"]} ({res["publisher_max_late_ms"]:.2f})'),
+        ('IMU callback p50 / p99 / max ms',
+         (f'{_fmt(res["callback_p50_ms"])} / {_fmt(res["callback_p99_ms"])} / '
+          f'{_fmt(res["callback_max_ms"])} (last {res["callback_window"]:.0f} callbacks)')),
+        ('end-to-end IMU stamp -> odometry p50 / p99 / max ms',
+         (f'{_fmt(e2e["p50_ms"])} / {_fmt(e2e["p99_ms"])} / {_fmt(e2e["max_ms"])} '
+          f'({e2e["n"]} odometry messages)')),
+        ('node CPU, % of one core', res.get('node_cpu_percent_of_one_core', float('nan'))),
+        ('node RSS / peak MiB', (f'{_fmt(res.get("node_rss_mb", float("nan")))} / '
+                                 f'{_fmt(res.get("node_peak_rss_mb", float("nan")))}')),
+    ]
+    print(_table(('figure', 'value'), rows, left=2))
+    q = res['qos']
+    print(f'  QoS: publisher IMU {q["imu_publisher"]}, JointState {q["wheel_publisher"]}; node '
+          f'inputs {q["node_inputs"]}; listener {q["listener"]}')
+    print(f'  odometry at the node default odometry_rate_hz = {res["odometry_rate_hz"]:g} '
+          '(latency measured on those IMU stamps); counters from the node\'s final '
+          '/diagnostics (watchdog STALE report)')
+
+
+def print_memory(res: dict[str, Any]) -> None:
+    print(f'\n== memory (core at full speed in a subprocess, {res["data_s"]:.0f} s of 250 Hz '
+          f'data, {res["imu_steps"]} IMU steps in {res["wall_s"]:.1f} s wall = '
+          f'{res["realtime_ratio"]:.1f}x real time)')
+    print(f'  RSS: start {res["rss_start_mb"]:.1f} MiB, peak during sim generation '
+          f'{res["peak_rss_sim_mb"]:.1f}, before processing {res["rss_before_processing_mb"]:.1f}, '
+          f'peak during processing {res["peak_rss_processing_mb"]:.1f}')
+    print(_table(('data s', 'RSS MiB', 'wall s'),
+                 [(s['data_s'], s['rss_mb'], s['wall_s']) for s in res['samples']]))
+    print(f'  memory: {res["verdict"]}; filter aligned={res["aligned"]}, '
+          f'health level {res["health_level"]}')
+
+
+def print_scaling(res: dict[str, Any]) -> None:
+    print('\n== scaling: core cost vs IMU rate (short scenario simulated at each rate, best of '
+          f'{res["repeats"]})')
+    print(_table(('IMU rate', 'IMU steps', 'wall s', 'us/step', 'x real time'),
+                 [(r['label'], r['imu_steps'], r['wall_s'], r['us_per_step'],
+                   r['realtime_ratio']) for r in res['by_rate']]))
+    print('  x real time at the IMU rate of the row; covariance_decimation in samples, so the '
+          'covariance rate scales with the IMU rate')
+    print('\n== scaling: core cost vs log length (chained default scenarios, 250 Hz)')
+    print(_table(('length', 'IMU steps', 'wall s', 'us/step', 'x real time'),
+                 [(r['label'], r['imu_steps'], r['wall_s'], r['us_per_step'],
+                   r['realtime_ratio']) for r in res['by_length']]))
