@@ -16,14 +16,11 @@ body's forward speed ``v``. Three things make them disagree, and they differ in 
   samples.
 
 So the detector looks at the free residual of the *uncorrected* INS (the filter's own velocity
-corrections removed, so the wheel aid cannot hide a change from it), smoothed over
-``_SMOOTH_S``, and runs a two-sided CUSUM (Page) on its increments with a drift allowance
-``kappa``: a slow common divergence is absorbed by the allowance, a step larger than the
-threshold ``h`` is a slip change whichever side it shows on. For a random walk of spread
-``sigma`` per sqrt(s) the chance that the CUSUM crosses ``h`` in one renewal is
-``exp(-2 kappa h / sigma^2)``; ``kappa`` is set so that this is ``_FALSE_ALARM`` with the
-spread measured online, and ``h`` is the larger of a fraction of the rim speed (half a slip
-class at most), a multiple of the measured spread and twice the wheel-aid noise.
+corrections removed, so the wheel aid cannot hide a change from it) with a multi-scale step
+test (:mod:`slip_estimator.core.step_test`): the change of its 0.5-s mean over 1 s and 2.5 s
+against ``slip_change_sigma`` times the spread of that change, learned online, and never below
+``slip_change_fraction`` of the rim speed. A slow common divergence stays under the threshold;
+a step beyond it is a slip change whichever side it shows on.
 
 Modes (:class:`Mode`):
 
@@ -56,21 +53,9 @@ from dataclasses import dataclass
 
 from slip_estimator.core.params import Params
 from slip_estimator.core.slip import slip_ratio
+from slip_estimator.core.step_test import SCALES_S, StepTest
 
 _NS = 1_000_000_000
-_SMOOTH_S = 0.5
-"""Averaging time of the free residual: white wheel noise (10 Hz quantisation, pitching) falls
-by sqrt(n), a slip transition (>= 0.5 s) is barely blurred."""
-_SCALES_S = (1.0, 2.5)
-"""Time scales of the step test: a slip transition of 0.5-3 s shows fully in one of them,
-while the INS random walk grows only like sqrt(T)."""
-_SCALES_NS = tuple(int(x * 1e9) for x in _SCALES_S)
-_SMOOTH_NS = int(_SMOOTH_S * 1e9)
-_SPREAD_PRIOR_N = 10
-_SPREAD_MEMORY_N = 500
-"""The spread is learned as a running mean (from a prior worth 10 samples) that becomes an
-EMA over 500 samples (50 s at 10 Hz): a step that stays under the threshold cannot inflate it
-within its own transition."""
 _MEMORY_S = 4.0
 """Samples kept: the smoothing and spread horizons plus a slow transition before an alarm."""
 _MEASURE_TIMEOUT_FACTOR = 5.0
@@ -142,10 +127,8 @@ class SlipModel:
 
     def __init__(self, params: Params) -> None:
         self.params = params
-        # Prior spread: twice the aid noise per sqrt(s) (a random walk), worth _SPREAD_PRIOR_N
-        # samples; then a running mean, slowing to an EMA over _SPREAD_MEMORY_N samples.
-        self.spread_var = [(2.0 * params.wheel_aid_std) ** 2 * t for t in _SCALES_S]
-        self._spread_n = [_SPREAD_PRIOR_N] * len(_SCALES_S)
+        # Prior spread of the step statistic: twice the aid noise per sqrt(s) (a random walk).
+        self.step_test = StepTest((2.0 * params.wheel_aid_std) ** 2)
         self.aid_noise_var = 0.0
         self.changes = {'wheel': 0, 'body': 0}
         self.baseline: float | None = None
@@ -162,9 +145,7 @@ class SlipModel:
         self._last_w: float | None = None
         self._recent_w: deque = deque()
         self._aided: deque = deque()  # (t, z, v, v_free) while tracking
-        self._free: deque = deque()  # (t, rho) free residual over the smoothing time
-        self._free_sum = 0.0
-        self._smooth: deque = deque()  # (t, smoothed free residual) while tracking
+        self.step_test.clear()
         self._stopped_since_ns: int | None = None
         self._last_t_ns = 0
         self._pitch_rad = 0.0
@@ -182,9 +163,7 @@ class SlipModel:
     def interrupt(self) -> None:
         """The INS went through a gap: its speed change across it says nothing about slip, so
         the step test and a running measurement start afresh (the held slip is kept)."""
-        self._free.clear()
-        self._free_sum = 0.0
-        self._smooth.clear()
+        self.step_test.clear()
         self._aided.clear()
         self._measure_since_ns = None
         self._reanchor = True  # what the INS integrated across the gap is not the body's
@@ -249,9 +228,7 @@ class SlipModel:
             return None
         measured = self._settle(w)
         self.slip_hold, self.mode = measured, Mode.TRACK
-        self._free.clear()
-        self._free_sum = 0.0
-        self._smooth.clear()
+        self.step_test.clear()
         # Anchor the velocity on the new hold now (not gated: where the measurement snapped,
         # the INS is known to have drifted, it is not an outlier).
         return AidDecision(speed_ratio(measured) * w, p.wheel_aid_std ** 2, anchor=True,
@@ -313,6 +290,11 @@ class SlipModel:
         return measured
 
     # ------------------------------------------------------------------ tracking
+    @property
+    def spread_var(self) -> list[float]:
+        """Learned variance of the free residual's change at each step-test scale, m^2/s^2."""
+        return self.step_test.spread_var
+
     def wheel_change_mps(self, w: float) -> float:
         """Aid innovation that signals a wheel-side slip change at rim speed ``w``, m/s."""
         p = self.params
@@ -352,13 +334,15 @@ class SlipModel:
             return None
         self._change_count = 0
         # Body side: a step of the free residual.
-        onset_ns = self._body_step(t_ns, w, v_free - z, turning)
+        k = self.params.slip_change_sigma * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
+        onset_ns = self.step_test.add(t_ns, v_free - z, self._aid_accel,
+                                      self.wheel_change_mps(w), k)
         if quiet:
             onset_ns = None
         if onset_ns is not None:
             # Continuity from before the longest scale: a transition slower than the scale
             # that fired began earlier, while the aid still held the old slip.
-            onset_ns = min(onset_ns, t_ns - _SCALES_NS[-1])
+            onset_ns = min(onset_ns, t_ns - int(SCALES_S[-1] * _NS))
             before = [x for x in self._aided if onset_ns - int(_ANCHOR_S * _NS) <= x[0] <= onset_ns]
             before = before or list(self._aided)[:1]
             if before:
@@ -385,50 +369,12 @@ class SlipModel:
         # Turning, the wheels also skid sideways: the held slip is a looser constraint.
         return AidDecision(z, p.wheel_aid_std ** 2 * (4.0 if turning else 1.0), repair=quiet)
 
-    def _body_step(self, t_ns: int, w: float, rho: float, turning: bool) -> int | None:
-        """Multi-scale step test on the smoothed free residual: its change over each scale
-        ``T`` of ``_SCALES_S`` against ``slip_change_sigma`` times its spread at that scale
-        (learned online, robustly). Returns the onset time on an alarm."""
-        free = self._free
-        free.append((t_ns, rho))
-        self._free_sum += rho
-        while free[0][0] < t_ns - _SMOOTH_NS:
-            self._free_sum -= free.popleft()[1]
-        rho_s = self._free_sum / len(free)
-        smooth = self._smooth
-        smooth.append((t_ns, rho_s, self._aid_accel))
-        while len(smooth) > 2 and smooth[1][0] <= t_ns - _SCALES_NS[-1]:
-            smooth.popleft()  # keep one entry at or before the longest scale
-        k = self.params.slip_change_sigma * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
-        alarm = None
-        for i, scale_ns in enumerate(_SCALES_NS):
-            t_then = t_ns - scale_ns
-            then = None
-            for t, r, acc in smooth:  # the newest value at or before t_then (oldest first)
-                if t > t_then:
-                    break
-                then = (t, r, acc)
-            if then is None:
-                continue
-            # The change since then without the aid corrections made since then.
-            d = rho_s - then[1] + then[2] * (t_ns - then[0]) * 1e-9
-            h = max(self.wheel_change_mps(w), k * math.sqrt(self.spread_var[i]))
-            if abs(d) > h:
-                alarm = t_then if alarm is None else min(alarm, t_then)
-            else:  # learn the spread at this scale, robustly (clipped at 3 sigma)
-                d2 = min(d * d, 9.0 * self.spread_var[i])
-                n = self._spread_n[i] = min(self._spread_n[i] + 1, _SPREAD_MEMORY_N)
-                self.spread_var[i] += (d2 - self.spread_var[i]) / n
-        return alarm
-
     def _start_change(self, anchor: tuple[float, float, bool] | None, side: str) -> None:
         self._previous, self._anchor = self.slip_hold, anchor
         self.slip_hold, self.mode = None, Mode.MEASURE
         self._measure_since_ns, self._change_count = None, 0
         self._aided.clear()
-        self._free.clear()
-        self._free_sum = 0.0
-        self._smooth.clear()
+        self.step_test.clear()
         self._from_rest = False
         self.changes[side] += 1
 
