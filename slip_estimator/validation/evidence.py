@@ -69,6 +69,7 @@ def core_runs(rtk: LogInput, measured: Measured, progress: bool = True) -> dict[
     out['patterns'] = injection_patterns(rtk.log, {
         k: rtk.params.replace(**CONFIG_BY_KEY[k].overrides(measured, RTK_LOG))
         for k in ('C', 'D')})
+    out['imu_speed_scatter'] = imu_speed_scatter(rtk.log, rtk.params)
     out['body_side'] = body_side(rtk.log, {
         'A': rtk.params.replace(**cfg_a(measured, RTK_LOG)),
         'D wheel side only': shipped.replace(slip_change_sigma=20.0),
@@ -271,6 +272,55 @@ def injection_patterns(log: Any, params: dict[str, Params]) -> list[dict[str, An
                         'n_truth': [int(x) for x in s.n_truth], 'sig_f1': s.significant_f1,
                         'slip_mae': s.slip_mae}
         out.append(row)
+    return out
+
+
+IMU_SPEED_SCALES_S = (0.5, 1.0, 1.5, 2.0, 3.0, 5.0)
+"""Time scales of :func:`imu_speed_scatter`: a slip transition takes 0.5-3 s."""
+
+
+def imu_speed_scatter(log: Any, params: Params, grid_s: float = 0.1) -> dict[str, list[float]]:
+    """How well the IMU alone tells a change of the forward speed on this rover, the signal a
+    body-side slip change has to be read from: the forward specific force less gravity (pitch
+    from the bias-corrected y gyro, levelled at the initial rest), integrated, against the RTK
+    speed change (1-s GNSS differences) and against the rim speed change (both as 0.5-s means)
+    over each scale of :data:`IMU_SPEED_SCALES_S`, while driving. The rim-against-RTK spread is
+    the floor of the comparison (the references' own noise). Returns per scale the std, 95th
+    percentile and largest absolute difference (m/s)."""
+    from slip_estimator.effects import gnss_speed
+    from slip_estimator.pathfinder import motion_interval
+    from slip_estimator.streams import from_pathfinder
+
+    data = from_pathfinder(log, params)
+    t = data.imu_ns * 1e-9
+    f_b, w_b = data.f_ib_b, data.omega_ib_b
+    rest = t < motion_interval(log)[0] - 0.5
+    f0 = f_b[rest].mean(axis=0)
+    g = float(np.linalg.norm(f0))
+    dt = np.gradient(t)
+    pitch = math.asin(f0[0] / g) + np.cumsum((w_b[:, 1] - w_b[rest, 1].mean()) * dt)
+    u = np.cumsum((f_b[:, 0] - g * np.sin(pitch)) * dt)
+    t_g = np.arange(t[0], t[-1], grid_s)
+    n_mean = int(round(0.5 / grid_s))
+    kernel = np.ones(n_mean) / n_mean
+    u_g = np.convolve(np.interp(t_g, t, u), kernel, mode='same')
+    rim = np.convolve(np.interp(t_g, data.wheel_ns * 1e-9, data.rim_mps.mean(axis=1)), kernel,
+                      mode='same')
+    v_rtk = gnss_speed(log, t_g)
+    driving = (v_rtk > 0.4) & (rim > 0.5)
+    ratio = float(np.median(v_rtk[driving] / rim[driving]))
+    out: dict[str, list[float]] = {'scales_s': list(IMU_SPEED_SCALES_S)}
+    for name, a, b in (('imu_vs_rtk', u_g, v_rtk), ('imu_vs_rim', u_g, ratio * rim),
+                       ('rim_vs_rtk', ratio * rim, v_rtk)):
+        for stat in ('std', 'p95', 'max'):
+            out[f'{name}_{stat}'] = []
+        for scale_s in IMU_SPEED_SCALES_S:
+            n = int(round(scale_s / grid_s))
+            e = (a[n:] - a[:-n]) - (b[n:] - b[:-n])
+            e = np.abs(e[driving[n:] & driving[:-n]])
+            out[f'{name}_std'].append(float(np.sqrt(np.mean(e ** 2))))
+            out[f'{name}_p95'].append(float(np.percentile(e, 95)))
+            out[f'{name}_max'].append(float(e.max()))
     return out
 
 

@@ -84,6 +84,19 @@ def test_core_level_evidence(study) -> None:
     assert any('wheel radius' in t for t in rows[-1]['suspects'])
 
 
+def test_imu_speed_scatter_is_a_walk_above_the_references_floor(study) -> None:
+    """The IMU-alone speed change scatters more the longer the interval (a random walk), and
+    well above the rim/RTK floor at the transition scales: the evidence the report's
+    'where it fails' paragraph is computed from."""
+    st, _ = study
+    sc = st.evidence['imu_speed_scatter']
+    std = sc['imu_vs_rim_std']
+    assert all(b > a for a, b in zip(std, std[1:]))
+    k = sc['scales_s'].index(2.0)
+    assert std[k] > 2.0 * sc['rim_vs_rtk_std'][k]
+    assert sc['imu_vs_rtk_std'][k] == pytest.approx(std[k], rel=0.3)
+
+
 def test_report_and_figures(study) -> None:
     from slip_estimator.validation.configs import COMMAND
     from slip_estimator.validation.figures import write_figures
