@@ -280,24 +280,30 @@ def _central_diff(y: np.ndarray, h: float) -> np.ndarray:
     return d
 
 
-# --- the simulator ------------------------------------------------------------------------------
+# --- the simulator: fine-grid truth -------------------------------------------------------------
 
-def simulate(config: ScenarioConfig) -> SimResult:
-    """Run the scenario: exact truth, then IMU, wheel encoders and GNSS with seeded errors."""
-    cfg = config
-    rover = cfg.rover
-    site = cfg.site
-    planet = PLANETS[site.planet]
-    truth_rng = np.random.default_rng(cfg.truth_seed)
-    noise_streams = [np.random.default_rng(s)
-                     for s in np.random.SeedSequence(cfg.noise_seed).spawn(8)]
+@dataclass(frozen=True)
+class _FineGrid:
+    """The fine time grid (rate_imu * oversample) with one extra sample either side for the
+    central differences: index 1 is t = 0, ``n`` samples run from t = 0 to the end."""
 
-    # --- 1. fine time grid and profiles (one extra sample either side for central diffs)
+    t_s: np.ndarray
+    h_s: float
+    n: int
+    rate_hz: float
+
+
+def _fine_grid(cfg: ScenarioConfig) -> _FineGrid:
     fine_hz = cfg.rate_imu_hz * cfg.oversample
     h = 1.0 / fine_hz
-    T = cfg.total_duration_s
-    n_fine = int(round(T * fine_hz)) + 1
-    t = (np.arange(n_fine + 2) - 1) * h
+    n_fine = int(round(cfg.total_duration_s * fine_hz)) + 1
+    return _FineGrid((np.arange(n_fine + 2) - 1) * h, h, n_fine, fine_hz)
+
+
+def _drive_profiles(cfg: ScenarioConfig, t: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Body speed v (m/s), heading rate (rad/s), slip and wheel spin (m/s) on the fine grid,
+    blended from the segment targets under wheel-rate or body-speed control."""
     starts = np.cumsum([0.0] + [s.duration_s for s in cfg.segments[:-1]])
     segs = cfg.segments
     # A log that starts in motion begins at the first segment's targets (no ramp from rest).
@@ -317,14 +323,14 @@ def simulate(config: ScenarioConfig) -> SimResult:
                                  [1.0] * len(segs), float(segs[0].control == 'wheel')), 0.0, 1.0)
     v = wheel_ctl * cmd / _slip_gain(s_cmd) + (1.0 - wheel_ctl) * cmd
     spin = (1.0 - wheel_ctl) * spin
+    return v, psi_dot, s_cmd, spin
 
-    yaw0 = heading_to_yaw_enu(site.heading_deg)
-    psi = yaw0 + _cumtrapz(psi_dot, h)
-    u_fwd = np.stack([np.cos(psi), np.sin(psi)], axis=1)
-    u_left = np.stack([-np.sin(psi), np.cos(psi)], axis=1)
 
-    # --- 2. terrain: hills placed on the flat-ground path by time, seeded jitter
-    xy_flat = _cumtrapz(v[:, None] * u_fwd, h)
+def _place_terrain(cfg: ScenarioConfig, t: np.ndarray, xy_flat: np.ndarray,
+                   u_fwd: np.ndarray, u_left: np.ndarray,
+                   truth_rng: np.random.Generator) -> Terrain:
+    """Hills placed on the flat-ground path ``xy_flat`` by time, with seeded jitter, and the
+    undulations in seeded directions and phases (draws in this order from ``truth_rng``)."""
     terr = cfg.terrain
     centres, heights, sigmas = [], [], []
     for hill in terr.hills:
@@ -336,11 +342,18 @@ def simulate(config: ScenarioConfig) -> SimResult:
         sigmas.append(hill.sigma_m)
     k_mag = 2.0 * math.pi / terr.undulation_wavelength_m
     und_dirs = truth_rng.uniform(0.0, 2.0 * math.pi, 2)
-    terrain = Terrain(np.array(centres).reshape(-1, 2), np.array(heights), np.array(sigmas),
-                       terr.undulation_amplitude_m,
-                       k_mag * np.stack([np.cos(und_dirs), np.sin(und_dirs)], axis=1),
-                       truth_rng.uniform(0.0, 2.0 * math.pi, 2))
+    return Terrain(np.array(centres).reshape(-1, 2), np.array(heights), np.array(sigmas),
+                   terr.undulation_amplitude_m,
+                   k_mag * np.stack([np.cos(und_dirs), np.sin(und_dirs)], axis=1),
+                   truth_rng.uniform(0.0, 2.0 * math.pi, 2))
 
+
+def _surface_path(terrain: Terrain, v: np.ndarray, u_fwd: np.ndarray, u_left: np.ndarray,
+                  xy_flat: np.ndarray, h: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Odom position ``p_o`` (N, 3) of the rover driving at speed v along the surface, and
+    the terrain gradients forward ``g_f`` and to the left ``g_l``. Anchors ``terrain`` at the
+    start (sets its ``z0_m`` and ``xy_offset_m``)."""
     # fixed point: horizontal speed depends on the slope, the slope on the position
     xy = xy_flat
     for _ in range(30):
@@ -358,20 +371,27 @@ def simulate(config: ScenarioConfig) -> SimResult:
     p_o = np.column_stack([xy - xy[1], z - z0])
     terrain.z0_m = float(z0)
     terrain.xy_offset_m = xy[1].copy()
+    return p_o, g_f, g_l
 
-    # --- 3. attitude and velocity of base_link
-    pitch = -np.arctan(g_f)
-    roll = np.arctan(g_l / np.sqrt(1.0 + g_f * g_f))
-    C = _attitude(psi, pitch, roll)  # C_base_o
-    v_o = v[:, None] * C[:, :, 0]
 
-    # --- 4. derivatives on the fine grid (central differences, O(h^2))
-    omega_eb_b = np.zeros((len(t), 3))
-    omega_eb_b[1:-1] = _vee_rel(C[:-2], C[2:]) / (2.0 * h)
-    omega_eb_b[0] = omega_eb_b[1]
-    omega_eb_b[-1] = omega_eb_b[-2]
+@dataclass(frozen=True)
+class _Inertial:
+    """IMU truth of base_link on the fine grid: specific force ``f_ib_b`` (m/s^2) at the IMU
+    position and angular rate ``omega_ib_b`` (rad/s), both in base_link; gravity ``g_n`` (NED)
+    and planet rate ``omega_ie_o`` (ENU) at the start."""
+
+    f_ib_b: np.ndarray
+    omega_ib_b: np.ndarray
+    g_n: np.ndarray
+    omega_ie_o: np.ndarray
+
+
+def _inertial_truth(cfg: ScenarioConfig, C: np.ndarray, v_o: np.ndarray,
+                    omega_eb_b: np.ndarray, h: float) -> _Inertial:
+    """Specific force and angular rate w.r.t. inertial space (module docstring, step 4)."""
+    site = cfg.site
+    planet = PLANETS[site.planet]
     a_o = _central_diff(v_o, h)
-
     L0 = math.radians(site.latitude_deg)
     g_n = gravity_n(planet, L0, site.height_m)
     g_o = C_ENU_NED @ g_n  # (0, 0, -g)
@@ -379,21 +399,85 @@ def simulate(config: ScenarioConfig) -> SimResult:
     f_o = a_o - g_o[None, :] + 2.0 * np.cross(omega_ie_o[None, :], v_o)
     f_b = np.einsum('nji,nj->ni', C, f_o)
     omega_ib_b = omega_eb_b + np.einsum('nji,j->ni', C, omega_ie_o)
-    r_b = np.asarray(rover.imu_to_base_xyz_m, dtype=float)
+    r_b = np.asarray(cfg.rover.imu_to_base_xyz_m, dtype=float)
     if np.any(r_b != 0.0):
         alpha_b = _central_diff(omega_ib_b, h)
         f_b = f_b + np.cross(alpha_b, r_b) + np.cross(omega_ib_b, np.cross(omega_ib_b, r_b))
-    C_imu_base = rpy_to_dcm(*rover.imu_to_base_rpy_rad)
+    return _Inertial(f_b, omega_ib_b, g_n, omega_ie_o)
 
-    # --- 5. wheels on the fine grid
+
+@dataclass(frozen=True)
+class _Truth:
+    """Truth on the fine grid (module docstring, steps 1-5); odom is ENU at the start."""
+
+    grid: _FineGrid
+    v_mps: np.ndarray
+    yaw0_rad: float
+    p_o: np.ndarray
+    C_base_o: np.ndarray
+    v_o: np.ndarray
+    omega_eb_b: np.ndarray
+    inertial: _Inertial
+    v_left_mps: np.ndarray
+    v_right_mps: np.ndarray
+    rim_mps: np.ndarray
+    terrain: Terrain
+
+
+def _truth(cfg: ScenarioConfig) -> _Truth:
+    """Exact truth kinematics; draws the terrain from the truth seed."""
+    grid = _fine_grid(cfg)
+    t, h = grid.t_s, grid.h_s
+    v, psi_dot, s_cmd, spin = _drive_profiles(cfg, t)
+    yaw0 = heading_to_yaw_enu(cfg.site.heading_deg)
+    psi = yaw0 + _cumtrapz(psi_dot, h)
+    u_fwd = np.stack([np.cos(psi), np.sin(psi)], axis=1)
+    u_left = np.stack([-np.sin(psi), np.cos(psi)], axis=1)
+    xy_flat = _cumtrapz(v[:, None] * u_fwd, h)
+    terrain = _place_terrain(cfg, t, xy_flat, u_fwd, u_left,
+                             np.random.default_rng(cfg.truth_seed))
+    p_o, g_f, g_l = _surface_path(terrain, v, u_fwd, u_left, xy_flat, h)
+
+    # attitude and velocity of base_link; angular rate by central differences, O(h^2)
+    pitch = -np.arctan(g_f)
+    roll = np.arctan(g_l / np.sqrt(1.0 + g_f * g_f))
+    C = _attitude(psi, pitch, roll)  # C_base_o
+    v_o = v[:, None] * C[:, :, 0]
+    omega_eb_b = np.zeros((len(t), 3))
+    omega_eb_b[1:-1] = _vee_rel(C[:-2], C[2:]) / (2.0 * h)
+    omega_eb_b[0] = omega_eb_b[1]
+    omega_eb_b[-1] = omega_eb_b[-2]
+    inertial = _inertial_truth(cfg, C, v_o, omega_eb_b, h)
+
+    # wheels: side speeds and rim speeds
     K = _slip_gain(s_cmd)
-    half_T = 0.5 * rover.track_width_m * rover.effective_track_factor
-    yaw_rate = omega_eb_b[:, 2]
-    v_left = v - yaw_rate * half_T
-    v_right = v + yaw_rate * half_T
+    half_T = 0.5 * cfg.rover.track_width_m * cfg.rover.effective_track_factor
+    v_left = v - omega_eb_b[:, 2] * half_T
+    v_right = v + omega_eb_b[:, 2] * half_T
     rim_left = v_left * K + spin
     rim_right = v_right * K + spin
     rim = np.column_stack([rim_left if left else rim_right for left in WHEEL_IS_LEFT])
+    return _Truth(grid, v, yaw0, p_o, C, v_o, omega_eb_b, inertial, v_left, v_right, rim,
+                  terrain)
+
+
+def simulate(config: ScenarioConfig) -> SimResult:
+    """Run the scenario: exact truth, then IMU, wheel encoders and GNSS with seeded errors."""
+    cfg = config
+    rover = cfg.rover
+    site = cfg.site
+    planet = PLANETS[site.planet]
+    noise_streams = [np.random.default_rng(s)
+                     for s in np.random.SeedSequence(cfg.noise_seed).spawn(8)]
+    tr = _truth(cfg)
+    t, h, n_fine, fine_hz = tr.grid.t_s, tr.grid.h_s, tr.grid.n, tr.grid.rate_hz
+    v, yaw0, p_o, C, v_o = tr.v_mps, tr.yaw0_rad, tr.p_o, tr.C_base_o, tr.v_o
+    omega_eb_b, f_b, omega_ib_b = tr.omega_eb_b, tr.inertial.f_ib_b, tr.inertial.omega_ib_b
+    g_n, omega_ie_o, terrain = tr.inertial.g_n, tr.inertial.omega_ie_o, tr.terrain
+    v_left, v_right, rim = tr.v_left_mps, tr.v_right_mps, tr.rim_mps
+    yaw_rate = omega_eb_b[:, 2]
+    L0 = math.radians(site.latitude_deg)
+    C_imu_base = rpy_to_dcm(*rover.imu_to_base_rpy_rad)
 
     # --- sample indices (fine index 1 is t = 0)
     os_imu = cfg.oversample
