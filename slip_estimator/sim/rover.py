@@ -461,38 +461,18 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
                   terrain)
 
 
-def simulate(config: ScenarioConfig) -> SimResult:
-    """Run the scenario: exact truth, then IMU, wheel encoders and GNSS with seeded errors."""
-    cfg = config
-    rover = cfg.rover
-    site = cfg.site
-    planet = PLANETS[site.planet]
-    noise_streams = [np.random.default_rng(s)
-                     for s in np.random.SeedSequence(cfg.noise_seed).spawn(8)]
-    tr = _truth(cfg)
-    t, h, n_fine, fine_hz = tr.grid.t_s, tr.grid.h_s, tr.grid.n, tr.grid.rate_hz
-    v, yaw0, p_o, C, v_o = tr.v_mps, tr.yaw0_rad, tr.p_o, tr.C_base_o, tr.v_o
-    omega_eb_b, f_b, omega_ib_b = tr.omega_eb_b, tr.inertial.f_ib_b, tr.inertial.omega_ib_b
-    g_n, omega_ie_o, terrain = tr.inertial.g_n, tr.inertial.omega_ie_o, tr.terrain
-    v_left, v_right, rim = tr.v_left_mps, tr.v_right_mps, tr.rim_mps
-    yaw_rate = omega_eb_b[:, 2]
-    L0 = math.radians(site.latitude_deg)
-    C_imu_base = rpy_to_dcm(*rover.imu_to_base_rpy_rad)
+# --- the simulator: sensors ---------------------------------------------------------------------
 
-    # --- sample indices (fine index 1 is t = 0)
-    os_imu = cfg.oversample
-    i_imu = 1 + np.arange(0, n_fine, os_imu)
-    i_wheel = 1 + np.arange(0, n_fine, int(round(fine_hz / cfg.rate_wheel_hz)))
-    i_gnss = 1 + np.arange(0, n_fine, int(round(fine_hz / cfg.gnss.rate_hz)))
-    t_imu = t[i_imu]
-
-    # --- IMU errors (noise seed)
-    f_true = f_b[i_imu] @ C_imu_base  # C_imu_base^T f, row-wise
-    w_true = omega_ib_b[i_imu] @ C_imu_base
-    n = len(i_imu)
+def _imu_errors(cfg: ScenarioConfig, f_true: np.ndarray, w_true: np.ndarray,
+                rng_bias: np.random.Generator, rng_rw: np.random.Generator,
+                rng_white: np.random.Generator, rng_sf: np.random.Generator
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Measured specific force and angular rate (imu_link, without vibration) and the true
+    accelerometer and gyro biases: turn-on biases, bias random walks, scale factor and
+    misalignment, white noise."""
+    n = len(f_true)
     e = cfg.imu
     dt_imu = 1.0 / cfg.rate_imu_hz
-    rng_bias, rng_rw, rng_white, rng_vib, rng_enc, rng_gnss, rng_sf, _ = noise_streams
     ba0 = rng_bias.normal(0.0, 1.0, 3) * e.accel_bias_sigma_mps2
     bg0 = rng_bias.normal(0.0, 1.0, 3) * e.gyro_bias_sigma_rps
     ba = ba0 + np.cumsum(rng_rw.normal(0.0, 1.0, (n, 3)), axis=0) \
@@ -508,10 +488,19 @@ def simulate(config: ScenarioConfig) -> SimResult:
         * e.accel_noise_density_mps2_rthz * math.sqrt(cfg.rate_imu_hz)
     w_meas = w_true @ M_g.T + bg + rng_white.normal(0.0, 1.0, (n, 3)) \
         * e.gyro_noise_density_rps_rthz * math.sqrt(cfg.rate_imu_hz)
-    # vibration: zero-mean, scales with how fast the wheels or the body move
-    vib = e.vibration
-    vib_speed = np.maximum(np.abs(v[i_imu]), np.abs(rim[i_imu]).mean(axis=1))
-    wheel_phase = _cumtrapz(np.abs(rim).mean(axis=1) / rover.wheel_radius_m, h)[i_imu]
+    return f_meas, w_meas, ba, bg
+
+
+def _add_vibration(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray, f_meas: np.ndarray,
+                   w_meas: np.ndarray, rng_vib: np.random.Generator
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Adds the zero-mean vibration (wheel harmonics and broadband noise, scaling with how fast
+    the wheels or the body move) to ``f_meas`` and ``w_meas`` in place and returns them."""
+    vib = cfg.imu.vibration
+    rim = tr.rim_mps
+    vib_speed = np.maximum(np.abs(tr.v_mps[i_imu]), np.abs(rim[i_imu]).mean(axis=1))
+    wheel_phase = _cumtrapz(np.abs(rim).mean(axis=1) / cfg.rover.wheel_radius_m,
+                            tr.grid.h_s)[i_imu]
     for mult, amp_a, amp_g in zip(vib.harmonic_multipliers, vib.accel_harmonic_mps2_per_mps,
                                   vib.gyro_harmonic_rps_per_mps):
         ph_a, ph_g = rng_vib.uniform(0.0, 2.0 * math.pi, 2)
@@ -520,12 +509,20 @@ def simulate(config: ScenarioConfig) -> SimResult:
         dir_g /= np.linalg.norm(dir_g)
         f_meas += (amp_a * vib_speed * np.sin(mult * wheel_phase + ph_a))[:, None] * dir_a
         w_meas += (amp_g * vib_speed * np.sin(mult * wheel_phase + ph_g))[:, None] * dir_g
+    n = len(i_imu)
     f_meas += rng_vib.normal(0.0, 1.0, (n, 3)) \
         * (vib.accel_broadband_mps2_per_mps * vib_speed)[:, None]
     w_meas += rng_vib.normal(0.0, 1.0, (n, 3)) \
         * (vib.gyro_broadband_rps_per_mps * vib_speed)[:, None]
+    return f_meas, w_meas
 
-    # --- wheel encoders: counts of rim travel, velocity from count differences
+
+def _wheel_encoders(cfg: ScenarioConfig, rim: np.ndarray, i_wheel: np.ndarray, h: float,
+                    rng_enc: np.random.Generator
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cumulative encoder counts of rim travel (random initial phase), joint angle (rad) from
+    the counts and joint rate (rad/s) from count differences over the wheel period."""
+    rover = cfg.rover
     dist = _cumtrapz(rim, h)
     dist = dist - dist[1]
     ppm = rover.encoder_pulses_per_m
@@ -537,16 +534,30 @@ def simulate(config: ScenarioConfig) -> SimResult:
     if cfg.start_moving:  # no count before the first: its rate is the rim speed then
         wheel_rate[0] = rim[i_wheel[0]] / rover.wheel_radius_m
     angle = counts / (ppm * rover.wheel_radius_m)
-    rim_w = rim[i_wheel]
-    v_w = v[i_wheel]
+    return counts, angle, wheel_rate
+
+
+def _wheel_slip_truth(tr: _Truth, i_wheel: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Slip of the mean wheel (eq. 1), its class, and the per-side slips at the wheel stamps."""
+    rim_w = tr.rim_mps[i_wheel]
+    v_w = tr.v_mps[i_wheel]
     rim_mean_w = rim_w.mean(axis=1)
     s_true = slip_ratio(v_w, rim_mean_w)
     cls = slip_class(s_true, v_w, rim_mean_w)
     left = np.array(WHEEL_IS_LEFT)
-    s_left = slip_ratio(v_left[i_wheel], rim_w[:, left].mean(axis=1))
-    s_right = slip_ratio(v_right[i_wheel], rim_w[:, ~left].mean(axis=1))
+    s_left = slip_ratio(tr.v_left_mps[i_wheel], rim_w[:, left].mean(axis=1))
+    s_right = slip_ratio(tr.v_right_mps[i_wheel], rim_w[:, ~left].mean(axis=1))
+    return s_true, cls, s_left, s_right
 
-    # wheel dead reckoning from the measured encoders (what a rover's odometry would publish)
+
+def _wheel_odometry(cfg: ScenarioConfig, wheel_rate: np.ndarray, yaw0: float
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """2-D dead reckoning from the measured encoders (what a rover's odometry would publish):
+    position (m), yaw (rad), speed (m/s) and yaw rate (rad/s) in odom."""
+    rover = cfg.rover
+    dt_wheel = 1.0 / cfg.rate_wheel_hz
+    left = np.array(WHEEL_IS_LEFT)
     rim_meas = wheel_rate * rover.wheel_radius_m
     wo_speed = rim_meas.mean(axis=1)
     wo_rate = (rim_meas[:, ~left].mean(axis=1) - rim_meas[:, left].mean(axis=1)) \
@@ -555,32 +566,63 @@ def simulate(config: ScenarioConfig) -> SimResult:
     yaw_mid = wo_yaw - 0.5 * wo_rate * dt_wheel
     wo_xy = np.cumsum(wo_speed[:, None] * np.stack([np.cos(yaw_mid), np.sin(yaw_mid)], axis=1)
                       * dt_wheel, axis=0)
+    return wo_xy, wo_yaw, wo_speed, wo_rate
 
-    # --- GNSS (antenna at base_link) from truth, small-offset geodetic conversion
-    R_N, R_E = radii_of_curvature(planet, L0)
-    pg = p_o[i_gnss]
-    ng = len(i_gnss)
-    noise = rng_gnss.normal(0.0, 1.0, (ng, 3)) * np.array(
+
+def _gnss_llh(cfg: ScenarioConfig, p_o: np.ndarray, rng_gnss: np.random.Generator
+              ) -> np.ndarray:
+    """GNSS fixes (latitude deg, longitude deg, height m) of the antenna at base_link from the
+    true odom positions ``p_o`` plus white noise, by a small-offset geodetic conversion."""
+    site = cfg.site
+    L0 = math.radians(site.latitude_deg)
+    R_N, R_E = radii_of_curvature(PLANETS[site.planet], L0)
+    noise = rng_gnss.normal(0.0, 1.0, (len(p_o), 3)) * np.array(
         [cfg.gnss.horizontal_std_m, cfg.gnss.horizontal_std_m, cfg.gnss.vertical_std_m])
-    pg = pg + noise
+    pg = p_o + noise
     lat = site.latitude_deg + np.degrees(pg[:, 1] / (R_N + site.height_m))
     lon = site.longitude_deg + np.degrees(pg[:, 0] / ((R_E + site.height_m) * math.cos(L0)))
     alt = site.height_m + pg[:, 2]
+    return np.column_stack([lat, lon, alt])
 
-    C_imu = C[i_imu]
-    v_imu = v_o[i_imu]
+
+def simulate(config: ScenarioConfig) -> SimResult:
+    """Run the scenario: exact truth, then IMU, wheel encoders and GNSS with seeded errors."""
+    cfg = config
+    tr = _truth(cfg)
+    rng_bias, rng_rw, rng_white, rng_vib, rng_enc, rng_gnss, rng_sf, _ = [
+        np.random.default_rng(s) for s in np.random.SeedSequence(cfg.noise_seed).spawn(8)]
+    # sample indices (fine index 1 is t = 0)
+    grid = tr.grid
+    i_imu = 1 + np.arange(0, grid.n, cfg.oversample)
+    i_wheel = 1 + np.arange(0, grid.n, int(round(grid.rate_hz / cfg.rate_wheel_hz)))
+    i_gnss = 1 + np.arange(0, grid.n, int(round(grid.rate_hz / cfg.gnss.rate_hz)))
+
+    C_imu_base = rpy_to_dcm(*cfg.rover.imu_to_base_rpy_rad)
+    f_true = tr.inertial.f_ib_b[i_imu] @ C_imu_base  # C_imu_base^T f, row-wise
+    w_true = tr.inertial.omega_ib_b[i_imu] @ C_imu_base
+    f_meas, w_meas, ba, bg = _imu_errors(cfg, f_true, w_true, rng_bias, rng_rw, rng_white,
+                                         rng_sf)
+    f_meas, w_meas = _add_vibration(cfg, tr, i_imu, f_meas, w_meas, rng_vib)
+    counts, angle, wheel_rate = _wheel_encoders(cfg, tr.rim_mps, i_wheel, grid.h_s, rng_enc)
+    s_true, cls, s_left, s_right = _wheel_slip_truth(tr, i_wheel)
+    wo_xy, wo_yaw, wo_speed, wo_rate = _wheel_odometry(cfg, wheel_rate, tr.yaw0_rad)
+
+    C_imu = tr.C_base_o[i_imu]
+    v_imu = tr.v_o[i_imu]
     return SimResult(
-        config=cfg, imu_t_s=t_imu, p_ob_o=p_o[i_imu], q_ob_wxyz=_dcm_to_quat_wxyz(C_imu),
-        C_base_o=C_imu, v_ob_o=v_imu, v_ob_b=np.einsum('nji,nj->ni', C_imu, v_imu),
-        omega_eb_b=omega_eb_b[i_imu], speed_mps=v[i_imu],
+        config=cfg, imu_t_s=grid.t_s[i_imu], p_ob_o=tr.p_o[i_imu],
+        q_ob_wxyz=_dcm_to_quat_wxyz(C_imu), C_base_o=C_imu, v_ob_o=v_imu,
+        v_ob_b=np.einsum('nji,nj->ni', C_imu, v_imu), omega_eb_b=tr.omega_eb_b[i_imu],
+        speed_mps=tr.v_mps[i_imu],
         f_ib_imu_true=f_true, omega_ib_imu_true=w_true, f_ib_imu=f_meas, omega_ib_imu=w_meas,
         accel_bias_imu=ba, gyro_bias_imu=bg,
-        wheel_t_s=t[i_wheel], rim_speed_true_mps=rim_w, wheel_counts=counts,
-        wheel_angle_rad=angle, wheel_rate_rps=wheel_rate, wheel_speed_true_mps=v_w,
-        slip_true=s_true, slip_class=cls, slip_left_true=s_left, slip_right_true=s_right,
-        yaw_rate_true_rps=yaw_rate[i_wheel],
+        wheel_t_s=grid.t_s[i_wheel], rim_speed_true_mps=tr.rim_mps[i_wheel],
+        wheel_counts=counts, wheel_angle_rad=angle, wheel_rate_rps=wheel_rate,
+        wheel_speed_true_mps=tr.v_mps[i_wheel], slip_true=s_true, slip_class=cls,
+        slip_left_true=s_left, slip_right_true=s_right,
+        yaw_rate_true_rps=tr.omega_eb_b[i_wheel, 2],
         wheel_odom_xy_m=wo_xy, wheel_odom_yaw_rad=wo_yaw, wheel_odom_speed_mps=wo_speed,
         wheel_odom_yaw_rate_rps=wo_rate,
-        gnss_t_s=t[i_gnss], gnss_llh=np.column_stack([lat, lon, alt]),
-        gravity_mps2=float(g_n[2]), omega_ie_o=omega_ie_o, yaw0_rad=yaw0,
-        terrain=terrain)
+        gnss_t_s=grid.t_s[i_gnss], gnss_llh=_gnss_llh(cfg, tr.p_o[i_gnss], rng_gnss),
+        gravity_mps2=float(tr.inertial.g_n[2]), omega_ie_o=tr.inertial.omega_ie_o,
+        yaw0_rad=tr.yaw0_rad, terrain=tr.terrain)
