@@ -519,6 +519,18 @@ def gnss_quality(sigma_h_m: np.ndarray | None, p_enu_m: np.ndarray | None = None
     return 'gnss_single_point'
 
 
+def _estimated_x_axis(run: RunData) -> np.ndarray | None:
+    """The estimated body x axis (odom, unit vectors) at the slip stamps, interpolated from
+    the estimated odometry; None without at least two odometry samples."""
+    if run.est_odom_stamp_ns is None or len(run.est_odom_stamp_ns) <= 1:
+        return None
+    x_axes = quat_wxyz_to_x_axis(run.est_odom_q_wxyz)
+    to = (run.est_odom_stamp_ns - run.est_odom_stamp_ns[0]) * 1e-9
+    tw = (run.est_slip_stamp_ns - run.est_odom_stamp_ns[0]) * 1e-9
+    x_axis = np.column_stack([np.interp(tw, to, x_axes[:, k]) for k in range(3)])
+    return x_axis / np.linalg.norm(x_axis, axis=1, keepdims=True)
+
+
 def evaluate_run(run: RunData, llh0: np.ndarray | None = None,
                  moving_threshold_mps: float = 0.02, tol_s: float = 0.05,
                  gnss_window_s: float = 1.0, wheel_time_offset_s: float = 0.0,
@@ -556,14 +568,7 @@ def evaluate_run(run: RunData, llh0: np.ndarray | None = None,
         truth_p = np.array([llh_to_local_enu(EARTH, p, llh0) for p in run.gnss_llh])
         truth_t = run.gnss_stamp_ns
         tg = truth_t * 1e-9
-        x_axis = None
-        if projection == 'estimate' and run.est_odom_stamp_ns is not None and \
-                len(run.est_odom_stamp_ns) > 1:
-            x_axes = quat_wxyz_to_x_axis(run.est_odom_q_wxyz)
-            to = (run.est_odom_stamp_ns - run.est_odom_stamp_ns[0]) * 1e-9
-            tw = (run.est_slip_stamp_ns - run.est_odom_stamp_ns[0]) * 1e-9
-            x_axis = np.column_stack([np.interp(tw, to, x_axes[:, k]) for k in range(3)])
-            x_axis /= np.linalg.norm(x_axis, axis=1, keepdims=True)
+        x_axis = _estimated_x_axis(run) if projection == 'estimate' else None
         v_rim = run.est_wheel_speed_mps
         if run.wheel_stamp_ns is not None and len(run.wheel_stamp_ns) > 1:
             idx = match_nearest(run.est_slip_stamp_ns, run.wheel_stamp_ns, int(tol_s * 1e9))

@@ -280,24 +280,30 @@ def _central_diff(y: np.ndarray, h: float) -> np.ndarray:
     return d
 
 
-# --- the simulator ------------------------------------------------------------------------------
+# --- the simulator: fine-grid truth -------------------------------------------------------------
 
-def simulate(config: ScenarioConfig) -> SimResult:
-    """Run the scenario: exact truth, then IMU, wheel encoders and GNSS with seeded errors."""
-    cfg = config
-    rover = cfg.rover
-    site = cfg.site
-    planet = PLANETS[site.planet]
-    truth_rng = np.random.default_rng(cfg.truth_seed)
-    noise_streams = [np.random.default_rng(s)
-                     for s in np.random.SeedSequence(cfg.noise_seed).spawn(8)]
+@dataclass(frozen=True)
+class _FineGrid:
+    """The fine time grid (rate_imu * oversample) with one extra sample either side for the
+    central differences: index 1 is t = 0, ``n`` samples run from t = 0 to the end."""
 
-    # --- 1. fine time grid and profiles (one extra sample either side for central diffs)
+    t_s: np.ndarray
+    h_s: float
+    n: int
+    rate_hz: float
+
+
+def _fine_grid(cfg: ScenarioConfig) -> _FineGrid:
     fine_hz = cfg.rate_imu_hz * cfg.oversample
     h = 1.0 / fine_hz
-    T = cfg.total_duration_s
-    n_fine = int(round(T * fine_hz)) + 1
-    t = (np.arange(n_fine + 2) - 1) * h
+    n_fine = int(round(cfg.total_duration_s * fine_hz)) + 1
+    return _FineGrid((np.arange(n_fine + 2) - 1) * h, h, n_fine, fine_hz)
+
+
+def _drive_profiles(cfg: ScenarioConfig, t: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Body speed v (m/s), heading rate (rad/s), slip and wheel spin (m/s) on the fine grid,
+    blended from the segment targets under wheel-rate or body-speed control."""
     starts = np.cumsum([0.0] + [s.duration_s for s in cfg.segments[:-1]])
     segs = cfg.segments
     # A log that starts in motion begins at the first segment's targets (no ramp from rest).
@@ -317,14 +323,14 @@ def simulate(config: ScenarioConfig) -> SimResult:
                                  [1.0] * len(segs), float(segs[0].control == 'wheel')), 0.0, 1.0)
     v = wheel_ctl * cmd / _slip_gain(s_cmd) + (1.0 - wheel_ctl) * cmd
     spin = (1.0 - wheel_ctl) * spin
+    return v, psi_dot, s_cmd, spin
 
-    yaw0 = heading_to_yaw_enu(site.heading_deg)
-    psi = yaw0 + _cumtrapz(psi_dot, h)
-    u_fwd = np.stack([np.cos(psi), np.sin(psi)], axis=1)
-    u_left = np.stack([-np.sin(psi), np.cos(psi)], axis=1)
 
-    # --- 2. terrain: hills placed on the flat-ground path by time, seeded jitter
-    xy_flat = _cumtrapz(v[:, None] * u_fwd, h)
+def _place_terrain(cfg: ScenarioConfig, t: np.ndarray, xy_flat: np.ndarray,
+                   u_fwd: np.ndarray, u_left: np.ndarray,
+                   truth_rng: np.random.Generator) -> Terrain:
+    """Hills placed on the flat-ground path ``xy_flat`` by time, with seeded jitter, and the
+    undulations in seeded directions and phases (draws in this order from ``truth_rng``)."""
     terr = cfg.terrain
     centres, heights, sigmas = [], [], []
     for hill in terr.hills:
@@ -336,11 +342,18 @@ def simulate(config: ScenarioConfig) -> SimResult:
         sigmas.append(hill.sigma_m)
     k_mag = 2.0 * math.pi / terr.undulation_wavelength_m
     und_dirs = truth_rng.uniform(0.0, 2.0 * math.pi, 2)
-    terrain = Terrain(np.array(centres).reshape(-1, 2), np.array(heights), np.array(sigmas),
-                       terr.undulation_amplitude_m,
-                       k_mag * np.stack([np.cos(und_dirs), np.sin(und_dirs)], axis=1),
-                       truth_rng.uniform(0.0, 2.0 * math.pi, 2))
+    return Terrain(np.array(centres).reshape(-1, 2), np.array(heights), np.array(sigmas),
+                   terr.undulation_amplitude_m,
+                   k_mag * np.stack([np.cos(und_dirs), np.sin(und_dirs)], axis=1),
+                   truth_rng.uniform(0.0, 2.0 * math.pi, 2))
 
+
+def _surface_path(terrain: Terrain, v: np.ndarray, u_fwd: np.ndarray, u_left: np.ndarray,
+                  xy_flat: np.ndarray, h: float
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Odom position ``p_o`` (N, 3) of the rover driving at speed v along the surface, and
+    the terrain gradients forward ``g_f`` and to the left ``g_l``. Anchors ``terrain`` at the
+    start (sets its ``z0_m`` and ``xy_offset_m``)."""
     # fixed point: horizontal speed depends on the slope, the slope on the position
     xy = xy_flat
     for _ in range(30):
@@ -358,20 +371,27 @@ def simulate(config: ScenarioConfig) -> SimResult:
     p_o = np.column_stack([xy - xy[1], z - z0])
     terrain.z0_m = float(z0)
     terrain.xy_offset_m = xy[1].copy()
+    return p_o, g_f, g_l
 
-    # --- 3. attitude and velocity of base_link
-    pitch = -np.arctan(g_f)
-    roll = np.arctan(g_l / np.sqrt(1.0 + g_f * g_f))
-    C = _attitude(psi, pitch, roll)  # C_base_o
-    v_o = v[:, None] * C[:, :, 0]
 
-    # --- 4. derivatives on the fine grid (central differences, O(h^2))
-    omega_eb_b = np.zeros((len(t), 3))
-    omega_eb_b[1:-1] = _vee_rel(C[:-2], C[2:]) / (2.0 * h)
-    omega_eb_b[0] = omega_eb_b[1]
-    omega_eb_b[-1] = omega_eb_b[-2]
+@dataclass(frozen=True)
+class _Inertial:
+    """IMU truth of base_link on the fine grid: specific force ``f_ib_b`` (m/s^2) at the IMU
+    position and angular rate ``omega_ib_b`` (rad/s), both in base_link; gravity ``g_n`` (NED)
+    and planet rate ``omega_ie_o`` (ENU) at the start."""
+
+    f_ib_b: np.ndarray
+    omega_ib_b: np.ndarray
+    g_n: np.ndarray
+    omega_ie_o: np.ndarray
+
+
+def _inertial_truth(cfg: ScenarioConfig, C: np.ndarray, v_o: np.ndarray,
+                    omega_eb_b: np.ndarray, h: float) -> _Inertial:
+    """Specific force and angular rate w.r.t. inertial space (module docstring, step 4)."""
+    site = cfg.site
+    planet = PLANETS[site.planet]
     a_o = _central_diff(v_o, h)
-
     L0 = math.radians(site.latitude_deg)
     g_n = gravity_n(planet, L0, site.height_m)
     g_o = C_ENU_NED @ g_n  # (0, 0, -g)
@@ -379,36 +399,80 @@ def simulate(config: ScenarioConfig) -> SimResult:
     f_o = a_o - g_o[None, :] + 2.0 * np.cross(omega_ie_o[None, :], v_o)
     f_b = np.einsum('nji,nj->ni', C, f_o)
     omega_ib_b = omega_eb_b + np.einsum('nji,j->ni', C, omega_ie_o)
-    r_b = np.asarray(rover.imu_to_base_xyz_m, dtype=float)
+    r_b = np.asarray(cfg.rover.imu_to_base_xyz_m, dtype=float)
     if np.any(r_b != 0.0):
         alpha_b = _central_diff(omega_ib_b, h)
         f_b = f_b + np.cross(alpha_b, r_b) + np.cross(omega_ib_b, np.cross(omega_ib_b, r_b))
-    C_imu_base = rpy_to_dcm(*rover.imu_to_base_rpy_rad)
+    return _Inertial(f_b, omega_ib_b, g_n, omega_ie_o)
 
-    # --- 5. wheels on the fine grid
+
+@dataclass(frozen=True)
+class _Truth:
+    """Truth on the fine grid (module docstring, steps 1-5); odom is ENU at the start."""
+
+    grid: _FineGrid
+    v_mps: np.ndarray
+    yaw0_rad: float
+    p_o: np.ndarray
+    C_base_o: np.ndarray
+    v_o: np.ndarray
+    omega_eb_b: np.ndarray
+    inertial: _Inertial
+    v_left_mps: np.ndarray
+    v_right_mps: np.ndarray
+    rim_mps: np.ndarray
+    terrain: Terrain
+
+
+def _truth(cfg: ScenarioConfig) -> _Truth:
+    """Exact truth kinematics; draws the terrain from the truth seed."""
+    grid = _fine_grid(cfg)
+    t, h = grid.t_s, grid.h_s
+    v, psi_dot, s_cmd, spin = _drive_profiles(cfg, t)
+    yaw0 = heading_to_yaw_enu(cfg.site.heading_deg)
+    psi = yaw0 + _cumtrapz(psi_dot, h)
+    u_fwd = np.stack([np.cos(psi), np.sin(psi)], axis=1)
+    u_left = np.stack([-np.sin(psi), np.cos(psi)], axis=1)
+    xy_flat = _cumtrapz(v[:, None] * u_fwd, h)
+    terrain = _place_terrain(cfg, t, xy_flat, u_fwd, u_left,
+                             np.random.default_rng(cfg.truth_seed))
+    p_o, g_f, g_l = _surface_path(terrain, v, u_fwd, u_left, xy_flat, h)
+
+    # attitude and velocity of base_link; angular rate by central differences, O(h^2)
+    pitch = -np.arctan(g_f)
+    roll = np.arctan(g_l / np.sqrt(1.0 + g_f * g_f))
+    C = _attitude(psi, pitch, roll)  # C_base_o
+    v_o = v[:, None] * C[:, :, 0]
+    omega_eb_b = np.zeros((len(t), 3))
+    omega_eb_b[1:-1] = _vee_rel(C[:-2], C[2:]) / (2.0 * h)
+    omega_eb_b[0] = omega_eb_b[1]
+    omega_eb_b[-1] = omega_eb_b[-2]
+    inertial = _inertial_truth(cfg, C, v_o, omega_eb_b, h)
+
+    # wheels: side speeds and rim speeds
     K = _slip_gain(s_cmd)
-    half_T = 0.5 * rover.track_width_m * rover.effective_track_factor
-    yaw_rate = omega_eb_b[:, 2]
-    v_left = v - yaw_rate * half_T
-    v_right = v + yaw_rate * half_T
+    half_T = 0.5 * cfg.rover.track_width_m * cfg.rover.effective_track_factor
+    v_left = v - omega_eb_b[:, 2] * half_T
+    v_right = v + omega_eb_b[:, 2] * half_T
     rim_left = v_left * K + spin
     rim_right = v_right * K + spin
     rim = np.column_stack([rim_left if left else rim_right for left in WHEEL_IS_LEFT])
+    return _Truth(grid, v, yaw0, p_o, C, v_o, omega_eb_b, inertial, v_left, v_right, rim,
+                  terrain)
 
-    # --- sample indices (fine index 1 is t = 0)
-    os_imu = cfg.oversample
-    i_imu = 1 + np.arange(0, n_fine, os_imu)
-    i_wheel = 1 + np.arange(0, n_fine, int(round(fine_hz / cfg.rate_wheel_hz)))
-    i_gnss = 1 + np.arange(0, n_fine, int(round(fine_hz / cfg.gnss.rate_hz)))
-    t_imu = t[i_imu]
 
-    # --- IMU errors (noise seed)
-    f_true = f_b[i_imu] @ C_imu_base  # C_imu_base^T f, row-wise
-    w_true = omega_ib_b[i_imu] @ C_imu_base
-    n = len(i_imu)
+# --- the simulator: sensors ---------------------------------------------------------------------
+
+def _imu_errors(cfg: ScenarioConfig, f_true: np.ndarray, w_true: np.ndarray,
+                rng_bias: np.random.Generator, rng_rw: np.random.Generator,
+                rng_white: np.random.Generator, rng_sf: np.random.Generator
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Measured specific force and angular rate (imu_link, without vibration) and the true
+    accelerometer and gyro biases: turn-on biases, bias random walks, scale factor and
+    misalignment, white noise."""
+    n = len(f_true)
     e = cfg.imu
     dt_imu = 1.0 / cfg.rate_imu_hz
-    rng_bias, rng_rw, rng_white, rng_vib, rng_enc, rng_gnss, rng_sf, _ = noise_streams
     ba0 = rng_bias.normal(0.0, 1.0, 3) * e.accel_bias_sigma_mps2
     bg0 = rng_bias.normal(0.0, 1.0, 3) * e.gyro_bias_sigma_rps
     ba = ba0 + np.cumsum(rng_rw.normal(0.0, 1.0, (n, 3)), axis=0) \
@@ -424,10 +488,19 @@ def simulate(config: ScenarioConfig) -> SimResult:
         * e.accel_noise_density_mps2_rthz * math.sqrt(cfg.rate_imu_hz)
     w_meas = w_true @ M_g.T + bg + rng_white.normal(0.0, 1.0, (n, 3)) \
         * e.gyro_noise_density_rps_rthz * math.sqrt(cfg.rate_imu_hz)
-    # vibration: zero-mean, scales with how fast the wheels or the body move
-    vib = e.vibration
-    vib_speed = np.maximum(np.abs(v[i_imu]), np.abs(rim[i_imu]).mean(axis=1))
-    wheel_phase = _cumtrapz(np.abs(rim).mean(axis=1) / rover.wheel_radius_m, h)[i_imu]
+    return f_meas, w_meas, ba, bg
+
+
+def _add_vibration(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray, f_meas: np.ndarray,
+                   w_meas: np.ndarray, rng_vib: np.random.Generator
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Adds the zero-mean vibration (wheel harmonics and broadband noise, scaling with how fast
+    the wheels or the body move) to ``f_meas`` and ``w_meas`` in place and returns them."""
+    vib = cfg.imu.vibration
+    rim = tr.rim_mps
+    vib_speed = np.maximum(np.abs(tr.v_mps[i_imu]), np.abs(rim[i_imu]).mean(axis=1))
+    wheel_phase = _cumtrapz(np.abs(rim).mean(axis=1) / cfg.rover.wheel_radius_m,
+                            tr.grid.h_s)[i_imu]
     for mult, amp_a, amp_g in zip(vib.harmonic_multipliers, vib.accel_harmonic_mps2_per_mps,
                                   vib.gyro_harmonic_rps_per_mps):
         ph_a, ph_g = rng_vib.uniform(0.0, 2.0 * math.pi, 2)
@@ -436,12 +509,20 @@ def simulate(config: ScenarioConfig) -> SimResult:
         dir_g /= np.linalg.norm(dir_g)
         f_meas += (amp_a * vib_speed * np.sin(mult * wheel_phase + ph_a))[:, None] * dir_a
         w_meas += (amp_g * vib_speed * np.sin(mult * wheel_phase + ph_g))[:, None] * dir_g
+    n = len(i_imu)
     f_meas += rng_vib.normal(0.0, 1.0, (n, 3)) \
         * (vib.accel_broadband_mps2_per_mps * vib_speed)[:, None]
     w_meas += rng_vib.normal(0.0, 1.0, (n, 3)) \
         * (vib.gyro_broadband_rps_per_mps * vib_speed)[:, None]
+    return f_meas, w_meas
 
-    # --- wheel encoders: counts of rim travel, velocity from count differences
+
+def _wheel_encoders(cfg: ScenarioConfig, rim: np.ndarray, i_wheel: np.ndarray, h: float,
+                    rng_enc: np.random.Generator
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cumulative encoder counts of rim travel (random initial phase), joint angle (rad) from
+    the counts and joint rate (rad/s) from count differences over the wheel period."""
+    rover = cfg.rover
     dist = _cumtrapz(rim, h)
     dist = dist - dist[1]
     ppm = rover.encoder_pulses_per_m
@@ -453,16 +534,30 @@ def simulate(config: ScenarioConfig) -> SimResult:
     if cfg.start_moving:  # no count before the first: its rate is the rim speed then
         wheel_rate[0] = rim[i_wheel[0]] / rover.wheel_radius_m
     angle = counts / (ppm * rover.wheel_radius_m)
-    rim_w = rim[i_wheel]
-    v_w = v[i_wheel]
+    return counts, angle, wheel_rate
+
+
+def _wheel_slip_truth(tr: _Truth, i_wheel: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Slip of the mean wheel (eq. 1), its class, and the per-side slips at the wheel stamps."""
+    rim_w = tr.rim_mps[i_wheel]
+    v_w = tr.v_mps[i_wheel]
     rim_mean_w = rim_w.mean(axis=1)
     s_true = slip_ratio(v_w, rim_mean_w)
     cls = slip_class(s_true, v_w, rim_mean_w)
     left = np.array(WHEEL_IS_LEFT)
-    s_left = slip_ratio(v_left[i_wheel], rim_w[:, left].mean(axis=1))
-    s_right = slip_ratio(v_right[i_wheel], rim_w[:, ~left].mean(axis=1))
+    s_left = slip_ratio(tr.v_left_mps[i_wheel], rim_w[:, left].mean(axis=1))
+    s_right = slip_ratio(tr.v_right_mps[i_wheel], rim_w[:, ~left].mean(axis=1))
+    return s_true, cls, s_left, s_right
 
-    # wheel dead reckoning from the measured encoders (what a rover's odometry would publish)
+
+def _wheel_odometry(cfg: ScenarioConfig, wheel_rate: np.ndarray, yaw0: float
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """2-D dead reckoning from the measured encoders (what a rover's odometry would publish):
+    position (m), yaw (rad), speed (m/s) and yaw rate (rad/s) in odom."""
+    rover = cfg.rover
+    dt_wheel = 1.0 / cfg.rate_wheel_hz
+    left = np.array(WHEEL_IS_LEFT)
     rim_meas = wheel_rate * rover.wheel_radius_m
     wo_speed = rim_meas.mean(axis=1)
     wo_rate = (rim_meas[:, ~left].mean(axis=1) - rim_meas[:, left].mean(axis=1)) \
@@ -471,32 +566,63 @@ def simulate(config: ScenarioConfig) -> SimResult:
     yaw_mid = wo_yaw - 0.5 * wo_rate * dt_wheel
     wo_xy = np.cumsum(wo_speed[:, None] * np.stack([np.cos(yaw_mid), np.sin(yaw_mid)], axis=1)
                       * dt_wheel, axis=0)
+    return wo_xy, wo_yaw, wo_speed, wo_rate
 
-    # --- GNSS (antenna at base_link) from truth, small-offset geodetic conversion
-    R_N, R_E = radii_of_curvature(planet, L0)
-    pg = p_o[i_gnss]
-    ng = len(i_gnss)
-    noise = rng_gnss.normal(0.0, 1.0, (ng, 3)) * np.array(
+
+def _gnss_llh(cfg: ScenarioConfig, p_o: np.ndarray, rng_gnss: np.random.Generator
+              ) -> np.ndarray:
+    """GNSS fixes (latitude deg, longitude deg, height m) of the antenna at base_link from the
+    true odom positions ``p_o`` plus white noise, by a small-offset geodetic conversion."""
+    site = cfg.site
+    L0 = math.radians(site.latitude_deg)
+    R_N, R_E = radii_of_curvature(PLANETS[site.planet], L0)
+    noise = rng_gnss.normal(0.0, 1.0, (len(p_o), 3)) * np.array(
         [cfg.gnss.horizontal_std_m, cfg.gnss.horizontal_std_m, cfg.gnss.vertical_std_m])
-    pg = pg + noise
+    pg = p_o + noise
     lat = site.latitude_deg + np.degrees(pg[:, 1] / (R_N + site.height_m))
     lon = site.longitude_deg + np.degrees(pg[:, 0] / ((R_E + site.height_m) * math.cos(L0)))
     alt = site.height_m + pg[:, 2]
+    return np.column_stack([lat, lon, alt])
 
-    C_imu = C[i_imu]
-    v_imu = v_o[i_imu]
+
+def simulate(config: ScenarioConfig) -> SimResult:
+    """Run the scenario: exact truth, then IMU, wheel encoders and GNSS with seeded errors."""
+    cfg = config
+    tr = _truth(cfg)
+    rng_bias, rng_rw, rng_white, rng_vib, rng_enc, rng_gnss, rng_sf, _ = [
+        np.random.default_rng(s) for s in np.random.SeedSequence(cfg.noise_seed).spawn(8)]
+    # sample indices (fine index 1 is t = 0)
+    grid = tr.grid
+    i_imu = 1 + np.arange(0, grid.n, cfg.oversample)
+    i_wheel = 1 + np.arange(0, grid.n, int(round(grid.rate_hz / cfg.rate_wheel_hz)))
+    i_gnss = 1 + np.arange(0, grid.n, int(round(grid.rate_hz / cfg.gnss.rate_hz)))
+
+    C_imu_base = rpy_to_dcm(*cfg.rover.imu_to_base_rpy_rad)
+    f_true = tr.inertial.f_ib_b[i_imu] @ C_imu_base  # C_imu_base^T f, row-wise
+    w_true = tr.inertial.omega_ib_b[i_imu] @ C_imu_base
+    f_meas, w_meas, ba, bg = _imu_errors(cfg, f_true, w_true, rng_bias, rng_rw, rng_white,
+                                         rng_sf)
+    f_meas, w_meas = _add_vibration(cfg, tr, i_imu, f_meas, w_meas, rng_vib)
+    counts, angle, wheel_rate = _wheel_encoders(cfg, tr.rim_mps, i_wheel, grid.h_s, rng_enc)
+    s_true, cls, s_left, s_right = _wheel_slip_truth(tr, i_wheel)
+    wo_xy, wo_yaw, wo_speed, wo_rate = _wheel_odometry(cfg, wheel_rate, tr.yaw0_rad)
+
+    C_imu = tr.C_base_o[i_imu]
+    v_imu = tr.v_o[i_imu]
     return SimResult(
-        config=cfg, imu_t_s=t_imu, p_ob_o=p_o[i_imu], q_ob_wxyz=_dcm_to_quat_wxyz(C_imu),
-        C_base_o=C_imu, v_ob_o=v_imu, v_ob_b=np.einsum('nji,nj->ni', C_imu, v_imu),
-        omega_eb_b=omega_eb_b[i_imu], speed_mps=v[i_imu],
+        config=cfg, imu_t_s=grid.t_s[i_imu], p_ob_o=tr.p_o[i_imu],
+        q_ob_wxyz=_dcm_to_quat_wxyz(C_imu), C_base_o=C_imu, v_ob_o=v_imu,
+        v_ob_b=np.einsum('nji,nj->ni', C_imu, v_imu), omega_eb_b=tr.omega_eb_b[i_imu],
+        speed_mps=tr.v_mps[i_imu],
         f_ib_imu_true=f_true, omega_ib_imu_true=w_true, f_ib_imu=f_meas, omega_ib_imu=w_meas,
         accel_bias_imu=ba, gyro_bias_imu=bg,
-        wheel_t_s=t[i_wheel], rim_speed_true_mps=rim_w, wheel_counts=counts,
-        wheel_angle_rad=angle, wheel_rate_rps=wheel_rate, wheel_speed_true_mps=v_w,
-        slip_true=s_true, slip_class=cls, slip_left_true=s_left, slip_right_true=s_right,
-        yaw_rate_true_rps=yaw_rate[i_wheel],
+        wheel_t_s=grid.t_s[i_wheel], rim_speed_true_mps=tr.rim_mps[i_wheel],
+        wheel_counts=counts, wheel_angle_rad=angle, wheel_rate_rps=wheel_rate,
+        wheel_speed_true_mps=tr.v_mps[i_wheel], slip_true=s_true, slip_class=cls,
+        slip_left_true=s_left, slip_right_true=s_right,
+        yaw_rate_true_rps=tr.omega_eb_b[i_wheel, 2],
         wheel_odom_xy_m=wo_xy, wheel_odom_yaw_rad=wo_yaw, wheel_odom_speed_mps=wo_speed,
         wheel_odom_yaw_rate_rps=wo_rate,
-        gnss_t_s=t[i_gnss], gnss_llh=np.column_stack([lat, lon, alt]),
-        gravity_mps2=float(g_n[2]), omega_ie_o=omega_ie_o, yaw0_rad=yaw0,
-        terrain=terrain)
+        gnss_t_s=grid.t_s[i_gnss], gnss_llh=_gnss_llh(cfg, tr.p_o[i_gnss], rng_gnss),
+        gravity_mps2=float(tr.inertial.g_n[2]), omega_ie_o=tr.inertial.omega_ie_o,
+        yaw0_rad=tr.yaw0_rad, terrain=tr.terrain)
