@@ -464,8 +464,9 @@ def test_text_is_finite_agrees_with_float():
 
 def test_slot_built_messages_equal_the_constructed_ones(monkeypatch):
     """msgbuild.build writes message slots directly; every output converter gives the same
-    message (equal, same repr, same bytes) as through the generated constructors."""
-    from rclpy.serialization import serialize_message
+    message (equal, same repr, same fields after serialisation) as through the generated
+    constructors."""
+    from rclpy.serialization import deserialize_message, serialize_message
 
     from slip_estimator.ros import convert, msgbuild
 
@@ -487,7 +488,9 @@ def test_slot_built_messages_equal_the_constructed_ones(monkeypatch):
     assert len(fast) == len(reference)
     for a, b in zip(fast, reference):
         assert a == b and repr(a) == repr(b)
-        assert serialize_message(a) == serialize_message(b)
+        # Bytes are compared through a round trip: rclpy leaves CDR padding bytes
+        # uninitialised, so two serialisations of one message may differ in them.
+        assert deserialize_message(serialize_message(a), type(b)) == b
     assert (fast[-1].sec, fast[-1].nanosec) == (0, 0)
     assert (fast[-7].sec, fast[-7].nanosec) == (-2, 500_000_000)
 
