@@ -352,7 +352,7 @@ def evaluate_main(argv: list[str] | None = None) -> int:
             llh0 = np.array([math.radians(params.initial_latitude_deg),
                              math.radians(params.initial_longitude_deg),
                              params.initial_height_m])
-        ev = evaluate_run(run, llh0=llh0, moving_threshold_mps=params.moving_speed_threshold,
+        ev = evaluate_run(run, llh0=llh0, moving_threshold_mps=params.moving_speed_threshold_mps,
                           gnss_window_s=args.gnss_window,
                           wheel_time_offset_s=args.wheel_time_offset,
                           projection=args.projection)
