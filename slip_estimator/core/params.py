@@ -24,8 +24,8 @@ GROUPS = ('rover', 'imu_noise', 'filter', 'detectors', 'slip_model', 'node')
 """The parameter groups, by the part that reads them: the rover and its sensor mounting (the
 node's public interface: stream conversion, alignment, odometry), the IMU's noise model (the
 filter's process noise, clipping), the filter (initial covariance, pseudo-measurements, gaps
-and recovery), the detectors (stationarity, turning, moving, stale wheels), the slip model
-(wheel aid, hold mode, slip output) and the node's outputs."""
+and recovery), the detectors (stationarity, turning, stale wheels), the slip model (wheel aid,
+hold mode, slip output and when the rover counts as moving) and the node's outputs."""
 
 
 def _p(default: Any, unit: str, doc: str, lo: float | None = None, hi: float | None = None,
@@ -156,9 +156,6 @@ class Params:
     turn_rate_threshold_rps: float = _detector(0.25, 'rad/s', 'above this yaw rate the lateral '
                                                'non-holonomic constraint is suspended '
                                                '(skid-steer turn)', 0.0, 10.0)
-    moving_speed_threshold_mps: float = _detector(0.02, 'm/s', 'below this rim and body speed '
-                                                  'the rover is "not moving" (slip class 0)',
-                                                  0.0, 1.0)
     wheel_timeout_s: float = _detector(0.5, 's', 'without wheel data for this long slip is '
                                        'STALE', 0.05, 60.0)
     # --- slip model: wheel aid, hold mode, slip output ----------------------------------------
@@ -181,6 +178,8 @@ class Params:
                                      'this many 1-s spreads of the free wheel/INS residual '
                                      '(measured online)', 0.0, 20.0)
     wheel_speed_std_mps: float = _slip(0.01, 'm/s', 'rim-speed measurement 1-sigma', 0.0, 1.0)
+    moving_speed_threshold_mps: float = _slip(0.02, 'm/s', 'below this rim and body speed the '
+                                              'rover is "not moving" (slip class 0)', 0.0, 1.0)
     # --- node: outputs ------------------------------------------------------------------------
     odometry_rate_hz: float = _node(25.0, 'Hz', 'rate of /slip_estimator/odometry (0 = every '
                                     'IMU sample)', 0.0, 1000.0)
@@ -223,8 +222,8 @@ class Params:
     rover = _view('rover', 'Rover geometry, wheel input, IMU mounting, initial pose, planet.')
     imu_noise = _view('imu_noise', 'IMU white noise, bias variation, vibration share, range.')
     filter = _view('filter', 'Initial covariance, alignment, pseudo-measurements, gaps, recovery.')
-    detectors = _view('detectors', 'Stationarity, turning, moving and stale-wheel thresholds.')
-    slip_model = _view('slip_model', 'Wheel aid, hold mode and slip output.')
+    detectors = _view('detectors', 'Stationarity, turning and stale-wheel thresholds.')
+    slip_model = _view('slip_model', 'Wheel aid, hold mode, slip output and moving threshold.')
     node = _view('node', "The node's outputs (rates, frames).")
 
 
