@@ -184,8 +184,8 @@ def confusion_matrix(est_class: np.ndarray, truth_class: np.ndarray) -> tuple[np
     return counts, percent
 
 
-def evaluate_slip(est_stamp_ns: np.ndarray, est_s: np.ndarray, est_class: np.ndarray,
-                  truth_stamp_ns: np.ndarray, truth_s: np.ndarray, truth_class: np.ndarray,
+def evaluate_slip(est_stamp_ns: np.ndarray, est_slip: np.ndarray, est_class: np.ndarray,
+                  truth_stamp_ns: np.ndarray, truth_slip: np.ndarray, truth_class: np.ndarray,
                   tol_s: float = 0.05) -> SlipResult:
     """Compare an estimated slip series with a truth slip series.
 
@@ -195,16 +195,16 @@ def evaluate_slip(est_stamp_ns: np.ndarray, est_s: np.ndarray, est_class: np.nda
     est_stamp_ns = np.asarray(est_stamp_ns, dtype=np.int64)
     order = np.argsort(est_stamp_ns, kind='stable')
     est_stamp_ns = est_stamp_ns[order]
-    est_s = np.asarray(est_s, dtype=float)[order]
+    est_slip = np.asarray(est_slip, dtype=float)[order]
     est_class = np.asarray(est_class, dtype=int)[order]
-    truth_s = np.asarray(truth_s, dtype=float)
+    truth_slip = np.asarray(truth_slip, dtype=float)
     truth_class = np.asarray(truth_class, dtype=int)
     idx = match_nearest(truth_stamp_ns, est_stamp_ns, round(tol_s * 1e9))
     matched = idx >= 0
     e_cls = np.where(matched, est_class[np.maximum(idx, 0)], -1) if len(est_class) else \
         np.full(len(truth_class), -1)
-    e_s = np.where(matched, est_s[np.maximum(idx, 0)], np.nan) if len(est_s) else \
-        np.full(len(truth_s), np.nan)
+    matched_slip = np.where(matched, est_slip[np.maximum(idx, 0)], np.nan) if len(est_slip) else \
+        np.full(len(truth_slip), np.nan)
     valid_truth = truth_class >= 0
     counts, percent = confusion_matrix(e_cls, truth_class)
     n_truth = counts.sum(axis=0)
@@ -229,7 +229,8 @@ def evaluate_slip(est_stamp_ns: np.ndarray, est_s: np.ndarray, est_class: np.nda
     rec = tp / (tp + fn) if tp + fn > 0 else float('nan')
     f1 = (2 * precision * rec / (precision + rec)
           if tp > 0 else (0.0 if (fp + fn) > 0 else float('nan')))
-    err = np.abs(e_s - truth_s)[covered & np.isfinite(e_s) & np.isfinite(truth_s)]
+    scored = covered & np.isfinite(matched_slip) & np.isfinite(truth_slip)
+    err = np.abs(matched_slip - truth_slip)[scored]
     mae = float(err.mean()) if err.size else float('nan')
     return SlipResult(counts, percent, n_truth, n_unknown, recall, balanced, balanced_strict,
                       coverage, float(precision), float(rec), float(f1), mae,

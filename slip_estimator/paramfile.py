@@ -3,12 +3,13 @@ from __future__ import annotations
 
 import dataclasses
 import fnmatch
+import sys
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from slip_estimator.core.params import ParameterError, Params
+from slip_estimator.core.params import ParameterError, Params, renamed_in
 
 NODE_NAME = 'slip_estimator'
 
@@ -69,8 +70,12 @@ def read_param_values(path: str | Path, node_name: str = NODE_NAME) -> dict[str,
 
 def load_params(path: str | Path, node_name: str = NODE_NAME) -> Params:
     """Params from a ROS 2 params file; unknown keys are an error (a typo must not pass)
-    unless the file sets ``allow_unknown_parameters: true`` (they are then ignored)."""
+    unless the file sets ``allow_unknown_parameters: true`` (they are then ignored). A
+    parameter set under its old name (:data:`~slip_estimator.core.params.RENAMED_PARAMETERS`)
+    loads, with a one-line warning on stderr naming the new name."""
     values = read_param_values(path, node_name)
+    for warning in renamed_in(values):
+        print(f'{path}: warning: {warning}', file=sys.stderr)
     allow_unknown = bool(values.get('allow_unknown_parameters', False))
     for key in NODE_ONLY_PARAMETERS:
         values.pop(key, None)
@@ -107,14 +112,19 @@ def _yaml_value(value: Any) -> str:
 
 
 def render_default_config() -> str:
-    """The text of ``config/slip_estimator.yaml``: every parameter, its default and a comment."""
+    """The text of ``config/slip_estimator.yaml``: every parameter, its default and a comment,
+    under a heading per group (flat keys: the groups are a comment, the names stay the node's)."""
     from slip_estimator.core.params import describe
 
     defaults = Params()
     lines = ['# slip_estimator parameters: mirrors slip_estimator/core/params.py key for key',
              '# (regenerate with `slip-estimator default-config > config/slip_estimator.yaml`).',
              f'{NODE_NAME}:', '  ros__parameters:']
+    group = None
     for f in dataclasses.fields(Params):
+        if f.metadata['group'] != group:
+            group = f.metadata['group']
+            lines.append(f'    # === {group} (Params.{group}) ===')
         lines.append(f'    # {describe(f.name)}')
         lines.append(f'    {f.name}: {_yaml_value(getattr(defaults, f.name))}')
     return '\n'.join(lines) + '\n'

@@ -171,8 +171,8 @@ class LogFacts:
     gnss_over_wheel_speed: float
     wheel_lag_s: float
     wheel_lag_corr: float
-    gyro_noise_density: float
-    accel_noise_density: float
+    gyro_noise_density_rps_rthz: float
+    accel_noise_density_mps2_rthz: float
     heading: HeadingEstimate
     notes: tuple[str, ...] = field(default_factory=tuple)
 
@@ -425,7 +425,8 @@ def log_facts(log: PathfinderLog) -> LogFacts:
         rest_f_ib_imu=tuple(float(x) for x in log.f_ib_imu[rest].mean(axis=0)),
         motion_start_s=t0 - ref, motion_end_s=t1 - ref,
         gnss_over_wheel_speed=gnss_over_wheel_speed(log), wheel_lag_s=lag, wheel_lag_corr=corr,
-        gyro_noise_density=g, accel_noise_density=a, heading=estimate_initial_heading(log),
+        gyro_noise_density_rps_rthz=g, accel_noise_density_mps2_rthz=a,
+        heading=estimate_initial_heading(log),
         notes=tuple(notes))
 
 
@@ -446,8 +447,9 @@ def format_facts(log: PathfinderLog, facts: LogFacts) -> str:
         f'  GNSS speed / rim speed (r={WHEEL_RADIUS_M} m): {facts.gnss_over_wheel_speed:.3f} '
         f'-> effective radius {WHEEL_RADIUS_M * facts.gnss_over_wheel_speed:.4f} m '
         '(valid with RTK only)',
-        f'  noise at rest: gyro {facts.gyro_noise_density:.2e} rad/s/sqrt(Hz) (datasheet '
-        f'{GYRO_ARW_RAD_PER_SQRT_S:.2e}), accel {facts.accel_noise_density:.2e} m/s^2/sqrt(Hz) '
+        f'  noise at rest: gyro {facts.gyro_noise_density_rps_rthz:.2e} rad/s/sqrt(Hz) '
+        f'(datasheet {GYRO_ARW_RAD_PER_SQRT_S:.2e}), '
+        f'accel {facts.accel_noise_density_mps2_rthz:.2e} m/s^2/sqrt(Hz) '
         f'(datasheet {ACCEL_VRW_MPS_PER_SQRT_S:.2e})',
         f'  initial heading {h.heading_deg:.2f} deg (GNSS course {h.course_deg:.2f} deg over '
         f'{h.distance_m:.1f} m / {h.n_fixes} fixes, gyro change to segment middle '
@@ -479,9 +481,10 @@ def pathfinder_params(log: PathfinderLog, heading_deg: float | None = None,
         wheel_joint_names=list(WHEEL_JOINT_NAMES), imu_to_base_rpy=list(IMU_TO_BASE_RPY),
         initial_latitude_deg=math.degrees(lat), initial_longitude_deg=math.degrees(lon),
         initial_height_m=float(h), initial_heading_deg=float(heading_deg) % 360.0,
-        planet='earth', gyro_noise_density=gyro_n, accel_noise_density=accel_n,
-        gyro_bias_psd=GYRO_BIAS_INSTABILITY_RPS ** 2 / BIAS_CORRELATION_TIME_S,
-        accel_bias_psd=ACCEL_BIAS_INSTABILITY_MPS2 ** 2 / BIAS_CORRELATION_TIME_S)
+        planet='earth', gyro_noise_density_rps_rthz=gyro_n,
+        accel_noise_density_mps2_rthz=accel_n,
+        gyro_bias_psd_rad2ps3=GYRO_BIAS_INSTABILITY_RPS ** 2 / BIAS_CORRELATION_TIME_S,
+        accel_bias_psd_m2ps5=ACCEL_BIAS_INSTABILITY_MPS2 ** 2 / BIAS_CORRELATION_TIME_S)
 
 
 def params_notes(facts: LogFacts, measured_noise: bool = False,
@@ -498,12 +501,13 @@ def params_notes(facts: LogFacts, measured_noise: bool = False,
                      'model on the Pathfinder logs (the lag drifts through a log, 0.095-0.165 s '
                      'on s5t1; docs/validation.md, effect E); the node measures it online and '
                      'names it in /diagnostics. import-pathfinder --measured-lag writes it.')
-    measured = (f'gyro {facts.gyro_noise_density:.2e} rad/s/sqrt(Hz), accel '
-                f'{facts.accel_noise_density:.2e} m/s^2/sqrt(Hz)')
+    measured = (f'gyro {facts.gyro_noise_density_rps_rthz:.2e} rad/s/sqrt(Hz), accel '
+                f'{facts.accel_noise_density_mps2_rthz:.2e} m/s^2/sqrt(Hz)')
+    names = 'gyro_noise_density_rps_rthz, accel_noise_density_mps2_rthz'
     if measured_noise:
-        notes.append(f'gyro_noise_density, accel_noise_density: measured at rest ({measured}).')
+        notes.append(f'{names}: measured at rest ({measured}).')
     else:
-        notes.append(f'gyro_noise_density, accel_noise_density: ADIS16495-2 datasheet, not the '
+        notes.append(f'{names}: ADIS16495-2 datasheet, not the '
                      f'values measured at rest ({measured}): the excess at rest is vibration, '
                      'carried by vibration_noise_fraction (docs/validation.md, effect B). '
                      'import-pathfinder --measured-noise writes the measured values.')

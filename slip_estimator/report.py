@@ -132,7 +132,7 @@ def load_run(input_bag: str | Path, output_bag: str | Path, *, wheel_radius_m: f
     to = _odometry_arrays(inp[TRUTH_ODOM_TOPIC])
     ts = sorted(inp[TRUTH_SLIP_TOPIC], key=header_stamp_ns)
     truth_t = np.array([header_stamp_ns(m) for m in ts], dtype=np.int64) if ts else None
-    truth_s = np.array([m.vector.x for m in ts]) if ts else None
+    truth_slip = np.array([m.vector.x for m in ts]) if ts else None
     truth_c = np.array([round(m.vector.z) for m in ts]) if ts else None
 
     gnss = sorted((m for m in inp[GNSS_TOPIC] if m.status.status >= 0), key=header_stamp_ns)
@@ -156,7 +156,7 @@ def load_run(input_bag: str | Path, output_bag: str | Path, *, wheel_radius_m: f
                 w_v.append(wheel_radius_m * float(np.mean(vals)))
         w_t, w_v = np.array(w_t, dtype=np.int64), np.array(w_v)
     return RunData(est_t, est[0], est[1], est[2].astype(int) if len(est[2]) else
-                   np.zeros(0, int), est[3], est[4], *eo, truth_t, truth_s, truth_c, *to,
+                   np.zeros(0, int), est[3], est[4], *eo, truth_t, truth_slip, truth_c, *to,
                    g_t, g_llh, g_sig, w_t, w_v)
 
 
@@ -352,7 +352,7 @@ def evaluate_main(argv: list[str] | None = None) -> int:
             llh0 = np.array([math.radians(params.initial_latitude_deg),
                              math.radians(params.initial_longitude_deg),
                              params.initial_height_m])
-        ev = evaluate_run(run, llh0=llh0, moving_threshold_mps=params.moving_speed_threshold,
+        ev = evaluate_run(run, llh0=llh0, moving_threshold_mps=params.moving_speed_threshold_mps,
                           gnss_window_s=args.gnss_window,
                           wheel_time_offset_s=args.wheel_time_offset,
                           projection=args.projection)

@@ -130,10 +130,11 @@ class StationaryDetector:
         self.sensor_std: list[float] | None = None
 
     @classmethod
-    def for_params(cls, p: Params) -> StationaryDetector:
+    def for_params(cls, params: Params) -> StationaryDetector:
         """The detector of the parameters (window sized for 250 Hz until the rate is known)."""
-        return cls(max(2, int(round(p.stationary_window_s * 250.0))), p.stationary_accel_std,
-                   p.stationary_gyro_std, p.stationary_wheel_speed_mps,
+        p = params.detectors
+        return cls(max(2, int(round(p.stationary_window_s * 250.0))), p.stationary_accel_std_mps2,
+                   p.stationary_gyro_std_rps, p.stationary_wheel_speed_mps,
                    int(p.wheel_timeout_s * 1_000_000_000))
 
     @property

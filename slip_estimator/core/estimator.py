@@ -290,7 +290,7 @@ class SlipEstimator:
             return self._wheel_odo.estimate(self.stamp_ns) if refused else None
         return outputs.odometry(self.stamp_ns, self.filter.state, self.filter.P,
                                 self.omega_ib_b, self._l_bw_b, self.planet, self.odom_frame,
-                                self.params.gyro_noise_density ** 2 / self.imu_rate.dt_s)
+                                self.params.gyro_noise_density_rps_rthz ** 2 / self.imu_rate.dt_s)
 
     def health(self) -> Health:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""

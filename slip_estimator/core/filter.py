@@ -112,8 +112,10 @@ class ErrorStateFilter:
 
     def use_noise(self, params: Params) -> None:
         """The process noise from the noise densities and bias PSDs of ``params`` (from now)."""
-        self._noise_psd = (params.gyro_noise_density ** 2, params.accel_noise_density ** 2,
-                           params.accel_bias_psd, params.gyro_bias_psd)
+        noise = params.imu_noise
+        self._noise_psd = (noise.gyro_noise_density_rps_rthz ** 2,
+                           noise.accel_noise_density_mps2_rthz ** 2,
+                           noise.accel_bias_psd_m2ps5, noise.gyro_bias_psd_rad2ps3)
 
     # ------------------------------------------------------------------ predict
     def mechanize(self, f_b: list[float], w_b: list[float], dt_s: float) -> bool:

@@ -54,15 +54,15 @@ class ZeroAngularRate:
     dof = 3
 
     def __init__(self, planet: Planet, rate_std_rps: float = 0.001,
-                 gyro_noise_density: float = 0.0) -> None:
+                 gyro_noise_density_rps_rthz: float = 0.0) -> None:
         self.planet = planet
         self.rate_std_rps = rate_std_rps
-        self.gyro_noise_density = gyro_noise_density
+        self.gyro_noise_density_rps_rthz = gyro_noise_density_rps_rthz
 
     def covariance(self, period_s: float) -> np.ndarray:
         """``R = (sigma_w^2 + N_g^2 / T) I``, rad^2/s^2: the constraint's own spread plus the
         gyro white noise of a mean over ``period_s``."""
-        r = self.rate_std_rps ** 2 + self.gyro_noise_density ** 2 / period_s
+        r = self.rate_std_rps ** 2 + self.gyro_noise_density_rps_rthz ** 2 / period_s
         return np.eye(3) * r
 
     def innovation(self, state: NavState, omega_ib_b_mean: np.ndarray) -> np.ndarray:

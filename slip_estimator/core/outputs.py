@@ -32,7 +32,7 @@ def unknown_slip(stamp_ns: int, wheel_speed_mps: float = 0.0) -> SlipEstimate:
 
 def slip_before_alignment(wheel: WheelSample, p: Params, imu_steady: bool) -> SlipEstimate:
     """Before alignment only "not moving" is known (wheels and IMU at rest)."""
-    if abs(wheel.rim_speed_mps) < p.moving_speed_threshold and imu_steady:
+    if abs(wheel.rim_speed_mps) < p.moving_speed_threshold_mps and imu_steady:
         return SlipEstimate(wheel.stamp_ns, 0.0, 0.0, 0, 0.0, 0.0, wheel.rim_speed_mps)
     return unknown_slip(wheel.stamp_ns, wheel.rim_speed_mps)
 
@@ -43,15 +43,15 @@ def slip_estimate(wheel: WheelSample, v_body_mps: float, yaw_rate_b_rps: float,
     """The slip of one wheel sample (paper eq. 1) against the body forward speed
     ``v_body_mps`` (variance ``var_v_mps2``) at its instant; per side with the effective
     ``track_width_m`` and the yaw rate (FRD) when the sample has sides."""
-    var_w = p.wheel_speed_std ** 2
+    var_w = p.wheel_speed_std_mps ** 2
     w = wheel.rim_speed_mps
     # "Not moving" when the rim speed is below the threshold and the body speed is not
     # significantly above it (an in-place turn or a stop must not read as extreme slip
     # because of a few cm/s of velocity uncertainty).
-    body_threshold = max(p.moving_speed_threshold, 3.0 * math.sqrt(max(var_v_mps2, 0.0)))
+    body_threshold = max(p.moving_speed_threshold_mps, 3.0 * math.sqrt(max(var_v_mps2, 0.0)))
     # The stationarity detector (IMU still and wheels stopped) says "not moving" outright:
     # a few cm/s of INS error at a stop must not read as a body sliding off its wheels.
-    moving = (abs(w) >= p.moving_speed_threshold or abs(v_body_mps) >= body_threshold) \
+    moving = (abs(w) >= p.moving_speed_threshold_mps or abs(v_body_mps) >= body_threshold) \
         and not stationary
     s = slip_ratio(v_body_mps, w) if moving else 0.0
     s_std = slip_ratio_std(v_body_mps, w, var_v_mps2, var_w) if moving else 0.0

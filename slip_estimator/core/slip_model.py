@@ -128,7 +128,7 @@ class SlipModel:
     def __init__(self, params: Params) -> None:
         self.params = params
         # Prior spread of the step statistic: twice the aid noise per sqrt(s) (a random walk).
-        self.step_test = StepTest((2.0 * params.wheel_aid_std) ** 2)
+        self.step_test = StepTest((2.0 * params.wheel_aid_std_mps) ** 2)
         self.aid_noise_var = 0.0
         self.changes = {'wheel': 0, 'body': 0}
         self.baseline: float | None = None
@@ -178,14 +178,14 @@ class SlipModel:
         if not moving:
             stopped_since = self._stopped_since_ns
             self.reset(from_rest=True)
-            if abs(w) >= self.params.moving_speed_threshold:
+            if abs(w) >= self.params.moving_speed_threshold_mps:
                 return None
             self._stopped_since_ns = t_ns if stopped_since is None else stopped_since
             if t_ns - self._stopped_since_ns < int(_STOP_S * _NS):
                 return None
             # Wheels held still: the body is at rest unless it slides, which the gate catches.
             # This anchors the next start even where a vibrating IMU keeps the ZUPT off.
-            return AidDecision(0.0, (2.0 * self.params.wheel_aid_std) ** 2)
+            return AidDecision(0.0, (2.0 * self.params.wheel_aid_std_mps) ** 2)
         steady = self._last_w is not None and \
             abs(w - self._last_w) <= _STEADY_FRACTION * abs(w) + 0.01
         self._last_w = w
@@ -231,7 +231,7 @@ class SlipModel:
         self.step_test.clear()
         # Anchor the velocity on the new hold now (not gated: where the measurement snapped,
         # the INS is known to have drifted, it is not an outlier).
-        return AidDecision(speed_ratio(measured) * w, p.wheel_aid_std ** 2, anchor=True,
+        return AidDecision(speed_ratio(measured) * w, p.wheel_aid_std_mps ** 2, anchor=True,
                            held_slip=measured)
 
     def _settle(self, w: float) -> float:
@@ -298,7 +298,7 @@ class SlipModel:
     def wheel_change_mps(self, w: float) -> float:
         """Aid innovation that signals a wheel-side slip change at rim speed ``w``, m/s."""
         p = self.params
-        return max(p.slip_change_fraction * abs(w), 2.0 * p.wheel_aid_std)
+        return max(p.slip_change_fraction * abs(w), 2.0 * p.wheel_aid_std_mps)
 
     def body_change_mps(self, w: float, turning: bool = False) -> float:
         """CUSUM threshold h of a body-side change at rim speed ``w``, m/s: the wheel-side
@@ -316,7 +316,7 @@ class SlipModel:
         if self._reanchor:
             self._reanchor = False
             self._quiet_until_ns = t_ns + int(_QUIET_AFTER_GAP_S * _NS)
-            return AidDecision(z, p.wheel_aid_std ** 2, anchor=True, repair=True)
+            return AidDecision(z, p.wheel_aid_std_mps ** 2, anchor=True, repair=True)
         quiet = t_ns < self._quiet_until_ns
         # Wheel side: the rim speed moved and the body did not follow (or the reverse).
         # The rim must have moved by at least half the discrepancy it is to explain (encoder
@@ -354,7 +354,7 @@ class SlipModel:
                 # old slip): the held speed before the onset plus the free speed change since,
                 # without the aid corrections made since the onset.
                 return AidDecision(z0 + v_free - f0 + a0 * (t_ns - t0) * 1e-9,
-                                   p.wheel_aid_std ** 2, anchor=True)
+                                   p.wheel_aid_std_mps ** 2, anchor=True)
         # Consistency noise of INS and wheels (vibration, encoder quantisation, pitching).
         self.aid_noise_var += (0.02 if self.aid_noise_var else 1.0) * (
             (z - v) ** 2 - self.aid_noise_var)
@@ -367,7 +367,7 @@ class SlipModel:
             # INS on the real rover drifts by more than the steps it would wait for.)
             return None
         # Turning, the wheels also skid sideways: the held slip is a looser constraint.
-        return AidDecision(z, p.wheel_aid_std ** 2 * (4.0 if turning else 1.0), repair=quiet)
+        return AidDecision(z, p.wheel_aid_std_mps ** 2 * (4.0 if turning else 1.0), repair=quiet)
 
     def _start_change(self, anchor: tuple[float, float, bool] | None, side: str) -> None:
         self._previous, self._anchor = self.slip_hold, anchor

@@ -42,10 +42,10 @@ class Updater:
                  monitor: ResidualMonitor) -> None:
         self.params = p
         self.constraints = PseudoMeasurements(
-            ZeroVelocity(p.zupt_velocity_std),
-            ZeroAngularRate(planet, p.zaru_rate_std, p.gyro_noise_density),
-            NonHolonomic(planet, l_bw_b, p.nhc_lateral_std, p.nhc_vertical_std))
-        self.turn = TurnDetector(p.turn_rate_threshold)
+            ZeroVelocity(p.zupt_velocity_std_mps),
+            ZeroAngularRate(planet, p.zaru_rate_std_rps, p.gyro_noise_density_rps_rthz),
+            NonHolonomic(planet, l_bw_b, p.nhc_lateral_std_mps, p.nhc_vertical_std_mps))
+        self.turn = TurnDetector(p.turn_rate_threshold_rps)
         self._period_ns = int(_NS / p.update_rate_hz)
         self._counters, self._monitor = counters, monitor
         self.reset()
@@ -107,7 +107,8 @@ class Updater:
         if params is not None:
             self.params = params
             flt.use_noise(params)
-            self.constraints.zaru.gyro_noise_density = params.gyro_noise_density
+            self.constraints.zaru.gyro_noise_density_rps_rthz = \
+                params.gyro_noise_density_rps_rthz
 
     def update(self, flt: ErrorStateFilter, name: str, innovation: np.ndarray, H: np.ndarray,
                R: np.ndarray, channels: tuple[str, ...] | None = None) -> Correction | None:

@@ -26,9 +26,10 @@ class WheelAid:
     """Wheel-aid decisions (see the module docstring); :attr:`slip_model` is the slip model."""
 
     def __init__(self, params: Params) -> None:
-        self._mode = params.wheel_aid
-        self._moving_speed_mps = params.moving_speed_threshold
-        self._aid_std_mps = params.wheel_aid_std
+        own = params.slip_model
+        self._mode = own.wheel_aid
+        self._moving_speed_mps = own.moving_speed_threshold_mps
+        self._aid_std_mps = own.wheel_aid_std_mps
         self.slip_model = SlipModel(params)
         # A fresh filter starts from rest (a static alignment is ZUPT-anchored; an in-motion
         # start resets the model again). Said explicitly: SlipModel() leaves it unset until the

@@ -64,7 +64,14 @@ from rclpy.qos import (
 )
 from std_srvs.srv import Trigger
 
-from slip_estimator.core.params import REMOVED_PARAMETERS, ParameterError, Params, describe
+from slip_estimator.core.params import (
+    REMOVED_PARAMETERS,
+    RENAMED_PARAMETERS,
+    ParameterError,
+    Params,
+    describe,
+    renamed_in,
+)
 from slip_estimator.paramfile import NODE_ONLY_PARAMETERS, node_sections, read_yaml
 from slip_estimator.ros.adapter import (
     OUTPUT_TYPES,
@@ -131,9 +138,11 @@ def params_files(argv: list[str]) -> list[str]:
 
 def unknown_parameters(names: Any) -> list[str]:
     """Names set for the node (params files, ``-p``) that are not parameters of it (removed
-    ones, :data:`REMOVED_PARAMETERS`, are not unknown: files that still set them load)."""
+    and renamed ones, :data:`REMOVED_PARAMETERS`, :data:`RENAMED_PARAMETERS`, are not unknown:
+    files that still set them load)."""
     return sorted(n for n in names if n not in _FIELDS and n not in NODE_ONLY_PARAMETERS
-                  and n not in REMOVED_PARAMETERS and n not in _ROS_OWN_PARAMETERS
+                  and n not in REMOVED_PARAMETERS and n not in RENAMED_PARAMETERS
+                  and n not in _ROS_OWN_PARAMETERS
                   and not n.startswith('qos_overrides.'))
 
 
@@ -147,9 +156,10 @@ class SlipEstimatorNode(Node):
                  **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         self._check_parameter_sources(param_files or [])
+        defaults = self._defaults_with_old_names()
         for name in _FIELDS:
             self.declare_parameter(
-                name, getattr(_DEFAULTS, name),
+                name, defaults[name],
                 ParameterDescriptor(description=describe(name), dynamic_typing=True))
         params = Params.from_dict({name: coerce_param_value(
             name, self.get_parameter(name).value) for name in _FIELDS})
@@ -202,6 +212,19 @@ class SlipEstimatorNode(Node):
         if unknown:
             self.get_logger().error(f'ignoring unknown parameter(s) {", ".join(unknown)} '
                                     f'({ALLOW_UNKNOWN} is true)')
+
+    def _defaults_with_old_names(self) -> dict[str, Any]:
+        """The schema's defaults, a value set under a parameter's old name
+        (:data:`RENAMED_PARAMETERS`) in place of its new name's default (the new name, when set
+        too, overrides it as any default); a one-line warning per old name."""
+        overrides = self._parameter_overrides
+        for warning in renamed_in(overrides):
+            self.get_logger().warning(warning)
+        defaults = _DEFAULTS.to_dict()
+        for old, new in RENAMED_PARAMETERS.items():
+            if old in overrides:
+                defaults[new] = overrides[old].value
+        return defaults
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response
                   ) -> Trigger.Response:

@@ -75,9 +75,10 @@ def sim_params(result: SimResult, wheel_input: str = 'joint_states',
         initial_height_m=site.height_m, initial_heading_deg=site.heading_deg,
         planet=site.planet,
         # Params lower bounds are > 0: an ideal IMU maps to the smallest allowed values.
-        accel_noise_density=max(imu.accel_noise_density_mps2_rthz, 1e-6),
-        gyro_noise_density=max(imu.gyro_noise_density_rps_rthz, 1e-7),
-        accel_bias_psd=imu.accel_bias_psd_m2ps5, gyro_bias_psd=imu.gyro_bias_psd_rad2ps3,
+        accel_noise_density_mps2_rthz=max(imu.accel_noise_density_mps2_rthz, 1e-6),
+        gyro_noise_density_rps_rthz=max(imu.gyro_noise_density_rps_rthz, 1e-7),
+        accel_bias_psd_m2ps5=imu.accel_bias_psd_m2ps5,
+        gyro_bias_psd_rad2ps3=imu.gyro_bias_psd_rad2ps3,
         initial_accel_bias_std=max(imu.accel_bias_sigma_mps2, 1e-6),
         initial_gyro_bias_std=max(imu.gyro_bias_sigma_rps, 1e-7),
         # The encoder speed is a count difference over the last wheel period: its mean age.
@@ -214,8 +215,9 @@ class _SimMessages:
         return m
 
 
-_IMU_NOISE_PARAMS = ('accel_noise_density', 'gyro_noise_density', 'accel_bias_psd',
-                     'gyro_bias_psd', 'initial_accel_bias_std', 'initial_gyro_bias_std')
+_IMU_NOISE_PARAMS = ('accel_noise_density_mps2_rthz', 'gyro_noise_density_rps_rthz',
+                     'accel_bias_psd_m2ps5', 'gyro_bias_psd_rad2ps3', 'initial_accel_bias_std',
+                     'initial_gyro_bias_std')
 
 
 def profile_params(profile: RobotProfile, result: SimResult) -> object:

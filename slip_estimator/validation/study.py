@@ -185,7 +185,7 @@ def run_case(task: CaseTask) -> CaseResult:
                      math.radians(params.initial_longitude_deg), params.initial_height_m])
     # The truth must not depend on the model: every configuration is scored against the
     # GNSS velocity at the time the wheel sample describes (stamp - measured lag).
-    ev = evaluate_run(run, llh0=llh0, moving_threshold_mps=params.moving_speed_threshold,
+    ev = evaluate_run(run, llh0=llh0, moving_threshold_mps=params.moving_speed_threshold_mps,
                       wheel_time_offset_s=-task.truth_lag_s)
     s = ev.slip
     m: dict[str, float] = _slip_class_metrics(s) if s is not None else {}

@@ -37,8 +37,8 @@ def run_straight_drive(params: Params, seed: int, duration_s: float, noise: bool
     w_ie_n = earth_rate_n(EARTH, L)
     C_b_n = frames.rpy_to_dcm(0.0, 0.0, math.radians(params.initial_heading_deg))
     dt = 1.0 / RATE_HZ
-    sf = params.accel_noise_density * math.sqrt(RATE_HZ) if noise else 0.0
-    sg = params.gyro_noise_density * math.sqrt(RATE_HZ) if noise else 0.0
+    sf = params.accel_noise_density_mps2_rthz * math.sqrt(RATE_HZ) if noise else 0.0
+    sg = params.gyro_noise_density_rps_rthz * math.sqrt(RATE_HZ) if noise else 0.0
     v = 0.0
     slips = []
     for k in range(int(duration_s * RATE_HZ)):
@@ -72,7 +72,8 @@ def test_noiseless_run_reproduces_truth():
 def test_velocity_nees_is_consistent_over_monte_carlo_runs():
     """NEES of the NED velocity between two ZUPTs of a stationary phase, over seeded runs
     (right after an exact pseudo-measurement the error is far below R, so not there)."""
-    p = Params(accel_noise_density=2e-3, gyro_noise_density=5e-5, zupt_velocity_std=1e-5)
+    p = Params(accel_noise_density_mps2_rthz=2e-3, gyro_noise_density_rps_rthz=5e-5,
+               zupt_velocity_std_mps=1e-5)
     n_runs = 12
     nees = []
     for seed in range(n_runs):
@@ -89,7 +90,8 @@ def test_velocity_nees_is_consistent_over_monte_carlo_runs():
 
 
 def test_zupt_nis_is_consistent_at_rest():
-    p = Params(accel_noise_density=2e-3, gyro_noise_density=5e-5, zupt_velocity_std=1e-5)
+    p = Params(accel_noise_density_mps2_rthz=2e-3, gyro_noise_density_rps_rthz=5e-5,
+               zupt_velocity_std_mps=1e-5)
     est = SlipEstimator(p)
     rng = np.random.default_rng(7)
     L = math.radians(p.initial_latitude_deg)
@@ -98,8 +100,9 @@ def test_zupt_nis_is_consistent_at_rest():
     nis = []
     for k in range(int(40 * RATE_HZ)):
         stamp = T0_NS + round(k / RATE_HZ * 1e9)
-        est.add_imu(ImuSample(stamp, -g_n + rng.normal(0, p.accel_noise_density * 10, 3),
-                              w_ie_n + rng.normal(0, p.gyro_noise_density * 10, 3)))
+        est.add_imu(ImuSample(
+            stamp, -g_n + rng.normal(0, p.accel_noise_density_mps2_rthz * 10, 3),
+            w_ie_n + rng.normal(0, p.gyro_noise_density_rps_rthz * 10, 3)))
         if k % 10 == 0:
             est.add_wheel(WheelSample(stamp, 0.0))
         nis += [r.nis for r in est.filter.last_records if r.name == 'zupt' and k > 20 * RATE_HZ]

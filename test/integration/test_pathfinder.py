@@ -131,8 +131,8 @@ def test_params_file(imported) -> None:
     assert p.initial_latitude_deg == pytest.approx(math.degrees(log.gnss_llh[0, 0]))
     expected = {'test17run': 2.0, 's5t1': 315.0}[name]     # README: ~2 and ~313 deg
     assert abs((p.initial_heading_deg - expected + 180) % 360 - 180) < 5.0
-    assert p.gyro_noise_density == pytest.approx(math.radians(0.1) / 60.0)
-    assert p.accel_noise_density == pytest.approx(0.008 / 60.0)
+    assert p.gyro_noise_density_rps_rthz == pytest.approx(math.radians(0.1) / 60.0)
+    assert p.accel_noise_density_mps2_rthz == pytest.approx(0.008 / 60.0)
 
 
 def test_facts_test17run_effective_radius(imported) -> None:

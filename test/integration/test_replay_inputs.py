@@ -142,6 +142,17 @@ def test_params_file_misspelled_section_or_name_refused(tmp_path, capsys):
     assert 'wheel_raduis' not in capsys.readouterr().err
 
 
+def test_params_file_with_an_old_parameter_name_loads_with_a_one_line_warning(tmp_path, capsys):
+    from slip_estimator.paramfile import load_params
+
+    params = tmp_path / 'p.yaml'
+    params.write_text('slip_estimator:\n  ros__parameters:\n    moving_speed_threshold: 0.03\n')
+    assert load_params(params).moving_speed_threshold_mps == 0.03
+    err = capsys.readouterr().err
+    assert err == (f'{params}: warning: parameter moving_speed_threshold is renamed '
+                   'moving_speed_threshold_mps (the old name still loads; rename it)\n')
+
+
 def test_ros1_bag_simulated_drive_replay_and_evaluate(tmp_path, capsys):
     """A simulated drive (sensors and truth) rewritten as a ROS 1 bag: replay and evaluate
     read it like the rosbag2 original."""

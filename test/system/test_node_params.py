@@ -60,6 +60,20 @@ def test_removed_parameter_does_not_refuse_the_start(tmp_path):
     assert rc is None and 'unknown parameter' not in out, out
 
 
+def test_renamed_parameter_applies_under_its_old_name_with_a_warning(tmp_path):
+    """A params file that sets a parameter under its name before it carried its unit starts the
+    node with that value, and one warning names the new name."""
+    from slip_estimator.ros.node import unknown_parameters
+
+    assert unknown_parameters(['wheel_aid_std', 'wheel_aid_stdd']) == ['wheel_aid_stdd']
+    f = tmp_path / 'p.yaml'
+    f.write_text('slip_estimator:\n  ros__parameters:\n    wheel_aid_std: 0.05\n')
+    rc, out = run_briefly(['--params-file', str(f)])
+    assert rc is None and 'unknown parameter' not in out, out
+    assert 'wheel_aid_std_mps=0.05' in out, out
+    assert out.count('parameter wheel_aid_std is renamed wheel_aid_std_mps') == 1, out
+
+
 def test_misspelled_section_reported_loudly(tmp_path):
     f = tmp_path / 'p.yaml'
     f.write_text('slip_estimatr:\n  ros__parameters:\n    wheel_radius: 0.2\n')

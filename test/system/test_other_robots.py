@@ -277,6 +277,6 @@ def test_simulate_cli_writes_a_robot_bag_and_its_params(tmp_path, capsys):
     assert 'diff_drive_gravity_free' in capsys.readouterr().out
     p = load_params(tmp_path / 'p.yaml')
     assert p.wheel_input == 'joint_states' and len(p.wheel_joint_names) == 2
-    assert p.gyro_noise_density == Params().gyro_noise_density
+    assert p.gyro_noise_density_rps_rthz == Params().gyro_noise_density_rps_rthz
     joints = next(m.msg for m in read_messages(tmp_path / 'bag', {'/joint_states'}))
     assert len(joints.position) == 2 and len(joints.velocity) == 0

@@ -153,7 +153,7 @@ def test_a_noisy_consumer_imu_still_finds_its_stops():
     p = sim_params(r)
     est, out, odo = run_core(p, from_simulation(r, p))
     assert est.stationary.rest_std is not None
-    assert est.stationary.thresholds()[1] > p.stationary_gyro_std
+    assert est.stationary.thresholds()[1] > p.stationary_gyro_std_rps
     assert est.counters['zupt'] > 50 and est.counters['zaru'] > 50
 
 
@@ -340,18 +340,20 @@ def test_noise_model_from_the_imu_messages_when_not_configured(configured):
     from slip_estimator.core.params import Params
     from slip_estimator.core.types import ImuSample
 
-    p = Params(gyro_noise_density=1e-3) if configured else Params()
+    p = Params(gyro_noise_density_rps_rthz=1e-3) if configured else Params()
     est = SlipEstimator(p)
     for k in range(30):
         est.add_imu(ImuSample(1_000_000_000 + k * 20_000_000, np.array([0.0, 0.0, -9.8]),
                               np.zeros(3), noise_var=(0.0025, 4e-4)))
     assert est.stationary.thresholds() == pytest.approx((1.5 * 0.05, 1.5 * 0.02))
     if configured:
-        assert est.params.gyro_noise_density == 1e-3
-        assert est.params.accel_noise_density == Params().accel_noise_density
+        assert est.params.gyro_noise_density_rps_rthz == 1e-3
+        assert est.params.accel_noise_density_mps2_rthz == \
+            Params().accel_noise_density_mps2_rthz
     else:
-        assert est.params.gyro_noise_density == pytest.approx(math.sqrt(4e-4 * 0.02))
-        assert est.params.accel_noise_density == pytest.approx(math.sqrt(0.0025 * 0.02))
+        assert est.params.gyro_noise_density_rps_rthz == pytest.approx(math.sqrt(4e-4 * 0.02))
+        assert est.params.accel_noise_density_mps2_rthz == pytest.approx(
+            math.sqrt(0.0025 * 0.02))
 
 
 @pytest.mark.parametrize('grade', ['tactical', 'consumer'])
@@ -368,15 +370,17 @@ def test_noise_model_measured_at_rest_when_not_configured(grade):
     imu = ImuErrorConfig.consumer_mems() if grade == 'consumer' else ImuErrorConfig.tactical()
     r = simulate(short_scenario(0).replace(imu=imu))
     defaults = Params()
-    p = dc.replace(sim_params(r), accel_noise_density=defaults.accel_noise_density,
-                   gyro_noise_density=defaults.gyro_noise_density)
+    p = dc.replace(sim_params(r),
+                   accel_noise_density_mps2_rthz=defaults.accel_noise_density_mps2_rthz,
+                   gyro_noise_density_rps_rthz=defaults.gyro_noise_density_rps_rthz)
     est, _, _ = run_core(p, from_simulation(r, p))
     assert est.stationary.rest_std is not None
     if grade == 'tactical':
-        assert est.params.accel_noise_density == defaults.accel_noise_density
-        assert est.params.gyro_noise_density == defaults.gyro_noise_density
+        assert est.params.accel_noise_density_mps2_rthz == \
+            defaults.accel_noise_density_mps2_rthz
+        assert est.params.gyro_noise_density_rps_rthz == defaults.gyro_noise_density_rps_rthz
     else:
-        assert est.params.accel_noise_density == pytest.approx(
+        assert est.params.accel_noise_density_mps2_rthz == pytest.approx(
             imu.accel_noise_density_mps2_rthz, rel=0.3)
-        assert est.params.gyro_noise_density == pytest.approx(
+        assert est.params.gyro_noise_density_rps_rthz == pytest.approx(
             imu.gyro_noise_density_rps_rthz, rel=0.3)

@@ -2,6 +2,7 @@
 the error-state filter (predict, gated Joseph update, correction), the forward-speed history
 (correction shift, free speed), the supervisor's decisions, the wheel aid's decisions, the
 pure slip output, and the parameter schema's removed keys."""
+import dataclasses
 import math
 
 import numpy as np
@@ -14,7 +15,14 @@ from slip_estimator.core.history import Correction, ForwardSpeedHistory
 from slip_estimator.core.kalman import chi2_threshold
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.outputs import slip_before_alignment, slip_estimate, unknown_slip
-from slip_estimator.core.params import REMOVED_PARAMETERS, ParameterError, Params
+from slip_estimator.core.params import (
+    GROUPS,
+    REMOVED_PARAMETERS,
+    RENAMED_PARAMETERS,
+    ParameterError,
+    Params,
+    renamed_in,
+)
 from slip_estimator.core.planet import EARTH, gravity_n
 from slip_estimator.core.state import BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
@@ -52,7 +60,8 @@ def test_predict_at_rest_grows_velocity_variance_by_the_accelerometer_psd():
     flt.predict_covariance(ImuWindow(10), dt)
     tau = n * dt
     g = float(np.linalg.norm(g_n))
-    expected = P0[3, 3] + p.accel_noise_density ** 2 * tau + g * g * P0[0, 0] * tau * tau
+    expected = (P0[3, 3] + p.accel_noise_density_mps2_rthz ** 2 * tau
+                + g * g * P0[0, 0] * tau * tau)
     assert flt.P[3, 3] == pytest.approx(expected, rel=2e-3)
     assert flt.P[POS, POS][2, 2] > P0[8, 8]  # height grows with the vertical velocity
     assert np.allclose(flt.P, flt.P.T, atol=0)
@@ -248,7 +257,7 @@ def test_wheel_aid_decisions():
     hold, off = WheelAid(Params()), WheelAid(Params(wheel_aid='off'))
     d = hold.reanchor(1.0, turning=False)
     assert d.z_mps == 1.0 and d.repair and not d.anchor
-    assert d.var_mps2 == pytest.approx(Params().wheel_aid_std ** 2 + 0.1 ** 2)
+    assert d.var_mps2 == pytest.approx(Params().wheel_aid_std_mps ** 2 + 0.1 ** 2)
     assert hold.reanchor(1.0, turning=True) is None
     assert off.reanchor(1.0, turning=False) is None
     wheel = WheelSample(1, 1.0)
@@ -284,6 +293,43 @@ def test_removed_parameters_are_ignored_unknown_ones_refused():
     with pytest.raises(ParameterError, match='unknown parameter'):
         Params.from_dict({'max_wheel_latency': 0.5})
     assert BG.start == 12 and POS.start == 6  # the layout these tests index by hand
+
+
+def test_renamed_parameters_load_under_their_old_name_with_a_warning_naming_the_new():
+    assert Params.from_dict({'wheel_aid_std': 0.05}).wheel_aid_std_mps == 0.05
+    assert Params.from_dict({'wheel_aid_std': 0.05, 'wheel_aid_std_mps': 0.03}) \
+        .wheel_aid_std_mps == 0.03  # the new name wins
+    assert renamed_in(['wheel_radius', 'turn_rate_threshold']) == [
+        'parameter turn_rate_threshold is renamed turn_rate_threshold_rps (the old name still '
+        'loads; rename it)']
+    names = {f.name for f in dataclasses.fields(Params)}
+    assert set(RENAMED_PARAMETERS.values()) <= names and not set(RENAMED_PARAMETERS) & names
+
+
+INTERFACE = {'wheel_radius', 'track_width', 'wheel_input', 'wheel_joint_names',
+             'imu_to_base_rpy', 'imu_to_base_xyz', 'planet'}
+"""The node's public parameters (and ``initial_*``): named as users' launch files set them."""
+UNIT_SUFFIX = {'m': '_m', 's': '_s', 'm/s': '_mps', 'm/s^2': '_mps2', 'rad/s': '_rps',
+               'Hz': '_hz', 'deg': '_deg', 'm/s^2/sqrt(Hz)': '_mps2_rthz',
+               'rad/s/sqrt(Hz)': '_rps_rthz', 'm^2/s^5': '_m2ps5', 'rad^2/s^3': '_rad2ps3'}
+
+
+def test_every_physical_parameter_but_the_interface_ends_with_its_unit():
+    for f in dataclasses.fields(Params):
+        unit = f.metadata['unit']
+        if unit and f.name not in INTERFACE and not f.name.startswith('initial_'):
+            assert f.name.endswith(UNIT_SUFFIX[unit]), (f.name, unit)
+
+
+def test_parameter_groups_partition_the_schema_and_are_frozen():
+    p = Params(wheel_radius=0.2, wheel_aid_std_mps=0.04)
+    views = [getattr(p, g) for g in GROUPS]
+    names = [f.name for v in views for f in dataclasses.fields(v)]
+    assert names == [f.name for f in dataclasses.fields(Params)]  # each once, schema order
+    assert p.rover.wheel_radius == 0.2 and p.slip_model.wheel_aid_std_mps == 0.04
+    assert not hasattr(p.rover, 'wheel_aid_std_mps')
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        p.node.odom_frame = 'map'
 
 
 def test_relevel_after_a_recovery_takes_the_tilt_from_the_specific_force():

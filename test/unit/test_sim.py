@@ -323,7 +323,8 @@ def test_bag_round_trip(tmp_path, short: SimResult) -> None:
     p = load_params(params_file)
     assert p.wheel_input == 'joint_states'
     assert p.imu_to_base_rpy == pytest.approx([math.pi, 0.0, 0.0])
-    assert p.accel_noise_density == pytest.approx(cut.config.imu.accel_noise_density_mps2_rthz)
+    assert p.accel_noise_density_mps2_rthz == pytest.approx(
+        cut.config.imu.accel_noise_density_mps2_rthz)
 
 
 def test_simulator_core_is_ros_free() -> None:
