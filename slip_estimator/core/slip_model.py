@@ -77,6 +77,9 @@ speed excludes the aid's corrections for ``_AID_MEMORY_S``): no body-side step t
 _RUN_AHEAD_MIN_SLIP = 0.15
 """A run-ahead this large (medium negative slip) needs the downhill pull; a few percent can
 come from a gentle slope, encoder scale or skid."""
+_RUN_AHEAD_MAX_SLIP = 0.5
+"""A body at twice the speed of wheels held at their rate slides rather than rolls: no rover
+drives there; such a reading is the INS (an unobserved bias after a start in motion)."""
 _STOP_S = 0.5
 """Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
 _ANCHOR_S = 0.5
@@ -264,12 +267,14 @@ class SlipModel:
         # better than that (a good IMU resolves smaller slip differences).
         h = min(self.wheel_change_mps(w),
                 p.slip_continuity_sigma * math.sqrt(self.spread_var[-1]))
-        if (not self._from_rest and baseline is not None and measured < -_RUN_AHEAD_MIN_SLIP
-                and self._pitch_rad > -_RUN_AHEAD_PITCH_RAD):
+        if not self._from_rest and (measured < -_RUN_AHEAD_MAX_SLIP or (
+                measured < -_RUN_AHEAD_MIN_SLIP and self._pitch_rad > -_RUN_AHEAD_PITCH_RAD)):
             # The body cannot run ahead of wheels held at a steady rate on level or rising
-            # ground (that takes a downhill pull): the INS says so only when it missed the
-            # start of a slowdown it now sees end, or drifted. Back to the ground's baseline.
-            measured = baseline
+            # ground (that takes a downhill pull), nor at twice their speed on any slope a
+            # rover drives: the INS says so only when it missed the start of a slowdown it now
+            # sees end, or drifted. Back to the ground's baseline (none yet after a start in
+            # motion: the wheels' speed).
+            measured = baseline if baseline is not None else 0.0
         if self._from_rest:
             self.baseline, self._from_rest = measured, False
             self._chain_var = 0.0

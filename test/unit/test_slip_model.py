@@ -9,6 +9,8 @@ is the truth plus an INS random walk that the decisions never touch.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -24,9 +26,13 @@ def smooth_step(t_s: np.ndarray, t0_s: float, ramp_s: float) -> np.ndarray:
 
 
 def run(w_mps: np.ndarray, v_true_mps: np.ndarray, seed: int = 0, walk_mps_rts: float = 0.01,
-        drift_mps2: float = 0.0, params: Params | None = None, pitch_rad=None):
-    """Feed the sequences at 10 Hz; return the model and the per-sample filter speed."""
+        drift_mps2: float = 0.0, params: Params | None = None, pitch_rad=None,
+        in_motion: bool = False):
+    """Feed the sequences at 10 Hz; return the model and the per-sample filter speed
+    (``in_motion``: the filter joined a moving rover, no stop anchors the first slip)."""
     model = SlipModel(params or Params())
+    if in_motion:
+        model.reset(from_rest=False)
     rng = np.random.default_rng(seed)
     err = np.cumsum(rng.normal(0.0, walk_mps_rts * np.sqrt(DT_S), len(w_mps))) \
         + drift_mps2 * DT_S * np.arange(len(w_mps))
@@ -137,3 +143,31 @@ def test_stopped_wheels_aid_a_zero_speed():
     assert decisions[0] is None
     assert decisions[-1] is not None and decisions[-1].z_mps == 0.0
     assert model.mode is Mode.REST
+
+
+@pytest.mark.parametrize('pitch_deg, floor', [(0.0, -0.15), (-4.0, -0.5)])
+def test_ins_excursions_after_a_start_in_motion_do_not_ratchet_into_a_run_ahead(pitch_deg,
+                                                                                 floor):
+    """Joined in motion (no stop has anchored a slip, no baseline): the INS speed of an IMU
+    whose biases are not observed yet jumps ahead by 0.25 m/s every 20 s while the wheels and
+    the body keep 0.8 m/s on firm ground. Each jump reads as a deeper run-ahead. On level
+    ground none is physical; nose-down (a tilt error reads as a slope) none beyond the body at
+    twice the wheel speed: the model falls back to the wheels' speed instead of ratcheting
+    (measured before the rule on the 395-s consumer-IMU robot: s = -0.82, speed 4-7 m/s)."""
+    t = np.arange(0.0, 100.0, DT_S)
+    w = np.full(len(t), 0.8)
+    jumps = sum(0.25 * smooth_step(t, t0, 0.5) for t0 in (20.0, 40.0, 60.0, 80.0))
+    model = SlipModel(Params())
+    model.reset(from_rest=False)
+    holds = []
+    v_est = 0.8
+    for k in range(len(t)):
+        if k:
+            v_est += jumps[k] - jumps[k - 1]
+        d = model.step(int(k * DT_S * 1e9), 0.8, v_est, 0.8 + jumps[k], True, False,
+                       math.radians(pitch_deg))
+        if d is not None:
+            v_est = d.z_mps if d.anchor else v_est + 0.5 * (d.z_mps - v_est)
+        holds.append(model.slip_hold)
+    assert sum(model.changes.values()) >= 3  # the jumps are seen
+    assert min(h for h in holds if h is not None) >= floor
