@@ -234,8 +234,9 @@ class SlipEstimator:
             return self._unknown(wheel.stamp_ns, wheel.rim_speed_mps)
         self.counters['slip_estimates'] += 1
         st = self.filter.state
-        est = outputs.slip_estimate(wheel, at.v_fwd_mps, at.yaw_rate_b_rps,
-                                    self.filter.variance(self.forward.jacobian(st)),
+        var_v = (self.filter.variance(self.forward.jacobian(st))
+                 + self.wheel_aid.held_speed_var_mps2(wheel.rim_speed_mps))
+        est = outputs.slip_estimate(wheel, at.v_fwd_mps, at.yaw_rate_b_rps, var_v,
                                     self.params, self.updater.is_stationary, self.track.width_m)
         self._apply_aid(self.wheel_aid.decide(wheel, at, est, st.C_b_n, turning), at)
         return est

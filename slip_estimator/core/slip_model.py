@@ -9,11 +9,8 @@ body's forward speed ``v``. Three things make them disagree, and they differ in 
   show as wheels spinning up at an unchanged body speed, which the encoders see. Either way the
   *free residual* ``rho = v_ins - g(s) w`` (``g(s) = v / w`` of the held slip) moves by
   ``w * delta_s`` within a few seconds and stays there;
-* **INS error is a slow random walk**: vibration, tilt and bias errors integrate into the
-  velocity with a spread that grows like sqrt(T) and no preferred sign (measured on the real
-  Pathfinder logs: ~0.04-0.05 m/s within a second of release, no mean drift);
-* **wheel noise is white** (encoder quantisation, body pitching): it averages out over a few
-  samples.
+* **INS error is a random walk** (vibration, tilt, biases; no preferred sign), measured on
+  the real log in docs/validation.md; **wheel noise is white** (quantisation, pitching).
 
 So the detector looks at the free residual of the *uncorrected* INS (the filter's own velocity
 corrections removed, so the wheel aid cannot hide a change from it) with a multi-scale step
@@ -33,16 +30,13 @@ Modes (:class:`Mode`):
   with ``slip_baseline = 'snap'`` one within it of the baseline is that ground again (this
   ends a chain of INS errors from one change to the next, measured on the real logs);
 * ``TRACK``: the held slip turns the rim speed into a forward-speed aid ``g(s_hold) w`` that
-  stops the INS drift without assuming zero slip, while the CUSUM watches for the next step.
-  No aid while the rim speed changes (encoder lag) or while a step is building up.
+  stops the INS drift without assuming zero slip, while the step test watches for the next
+  step (no aid while the rim speed changes: encoder lag).
 
-Where it fails (assumptions): a slip that changes slowly (over tens of seconds, e.g. a long
-gradual slope) is indistinguishable from INS drift and is absorbed; a slip change smaller than
-``h`` (``slip_change_fraction`` of the rim speed) is not seen; a change while turning hard is
-measured by a worse INS (turns raise ``h``); a wheel-radius error is a constant slip.
-
-The model returns decisions (:class:`AidDecision`); the estimator applies them to its filter.
-Only the standard library is used.
+Where it fails: a slip changing over tens of seconds is absorbed as INS drift; a change below
+``slip_change_fraction`` of the rim speed is not seen; turns raise the thresholds; a
+wheel-radius error is a constant slip. Decisions (:class:`AidDecision`) go to the estimator;
+only the standard library is used.
 """
 from __future__ import annotations
 
@@ -56,8 +50,6 @@ from slip_estimator.core.slip import slip_ratio
 from slip_estimator.core.step_test import SCALES_S, StepTest
 
 _NS = 1_000_000_000
-_MEMORY_S = 4.0
-"""Samples kept: the smoothing and spread horizons plus a slow transition before an alarm."""
 _MEASURE_TIMEOUT_FACTOR = 5.0
 """After this many ``slip_measure_s`` a measurement settles even if the body still moves."""
 _TURN_THRESHOLD_FACTOR = 1.5
@@ -72,14 +64,14 @@ _RUN_AHEAD_PITCH_RAD = math.radians(2.0)
 """Nose-down pitch below which a body running ahead of its wheels is physically possible
 (gravity along the slope beating the rolling resistance of soft ground)."""
 _QUIET_AFTER_GAP_S = 4.0
-"""After an IMU gap the filter settles its attitude and biases for a few seconds (and the free
-speed excludes the aid's corrections for ``_AID_MEMORY_S``): no body-side step test then."""
+"""After an IMU gap the filter settles its attitude and biases: no body-side step test."""
 _RUN_AHEAD_MIN_SLIP = 0.15
-"""A run-ahead this large (medium negative slip) needs the downhill pull; a few percent can
-come from a gentle slope, encoder scale or skid."""
+"""A run-ahead this large needs the downhill pull (a few percent: slope, encoder scale, skid)."""
 _RUN_AHEAD_MAX_SLIP = 0.5
-"""A body at twice the speed of wheels held at their rate slides rather than rolls: no rover
-drives there; such a reading is the INS (an unobserved bias after a start in motion)."""
+"""A body at twice the speed of wheels held at their rate slides rather than rolls: such a
+reading is the INS (an unobserved bias after a start in motion)."""
+_ASSUMED_SLIP_STD = 0.1
+"""1-sigma of a slip nothing measured (a start in motion, before a stop): half the low class."""
 _STOP_S = 0.5
 """Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
 _ANCHOR_S = 0.5
@@ -154,6 +146,7 @@ class SlipModel:
         self._pitch_rad = 0.0
         self._aid_accel = 0.0
         self._chain_var = 0.0
+        self._assumed = False  # the held slip rests on an assumption, not a measurement
         self._reanchor = False
         self._quiet_until_ns = 0
 
@@ -260,6 +253,8 @@ class SlipModel:
             if abs(dv) < p.slip_continuity_sigma * math.sqrt(self.aid_noise_var):
                 dv = 0.0
             measured = slip_ratio(z_before + dv, sum(x[2] for x in vals) / len(vals))
+        if self._anchor is None and not self._from_rest:
+            self._assumed = True  # the INS was re-initialised from the rim: zero slip assumed
         self._anchor = None
         previous, baseline = self._previous, self.baseline
         # Within this speed of the previous hold or of the baseline a measurement is that
@@ -275,8 +270,9 @@ class SlipModel:
             # sees end, or drifted. Back to the ground's baseline (none yet after a start in
             # motion: the wheels' speed).
             measured = baseline if baseline is not None else 0.0
+            self._assumed = self._assumed or baseline is None
         if self._from_rest:
-            self.baseline, self._from_rest = measured, False
+            self.baseline, self._from_rest, self._assumed = measured, False, False
             self._chain_var = 0.0
             return measured
         # Each change measured from the held model before it adds its INS error to the
@@ -293,6 +289,17 @@ class SlipModel:
             measured = baseline
             self._chain_var = 0.0
         return measured
+
+    def held_speed_var_mps2(self, w: float) -> float:
+        """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided
+        covariance knows nothing of the hold), m^2/s^2: the INS spread of a measurement plus
+        the chain since the last anchor; ``_ASSUMED_SLIP_STD`` of ``w`` if nothing measured it
+        (a start in motion); none while measuring or at rest (the free INS carries its own)."""
+        if self.mode is not Mode.TRACK:
+            return 0.0
+        if self._assumed:
+            return (_ASSUMED_SLIP_STD * w) ** 2
+        return self.spread_var[-1] + self._chain_var
 
     # ------------------------------------------------------------------ tracking
     @property

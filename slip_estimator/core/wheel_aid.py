@@ -45,6 +45,13 @@ class WheelAid:
         var_mps2 = self._aid_std_mps ** 2 + (_RECOVERY_SLIP_STD * rim_speed_mps) ** 2
         return AidDecision(rim_speed_mps, var_mps2, repair=True)
 
+    def held_speed_var_mps2(self, rim_speed_mps: float) -> float:
+        """The held slip's own body-speed variance (``SlipModel.held_speed_var_mps2``); 0
+        without the hold mode."""
+        if self._mode != 'hold':
+            return 0.0
+        return self.slip_model.held_speed_var_mps2(rim_speed_mps)
+
     def decide(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate,
                C_b_n: np.ndarray, turning: bool) -> AidDecision | None:
         """The slip model's decision for one evaluated wheel sample (``est`` its slip, ``at``

@@ -171,3 +171,22 @@ def test_ins_excursions_after_a_start_in_motion_do_not_ratchet_into_a_run_ahead(
         holds.append(model.slip_hold)
     assert sum(model.changes.values()) >= 3  # the jumps are seen
     assert min(h for h in holds if h is not None) >= floor
+
+
+def test_the_held_slip_carries_its_own_uncertainty():
+    """The filter's covariance, tight under the aid, knows nothing of the hold: an assumed hold
+    (joined in motion, nothing measured) adds 0.1 of the rim speed; one measured from a start
+    at rest adds the INS spread of a measurement; while measuring, nothing (the free INS)."""
+    model = SlipModel(Params())
+    model.reset(from_rest=False)
+    k = 0
+    while model.mode is not Mode.TRACK and k < 100:
+        model.step(int(k * DT_S * 1e9), 0.8, 0.8, 0.8, True, False)
+        k += 1
+    assert model.mode is Mode.TRACK
+    assert model.held_speed_var_mps2(0.8) == pytest.approx((0.1 * 0.8) ** 2)
+    t, start = drive()
+    measured, _ = run(0.6 * start, 0.57 * start)
+    assert measured.mode is Mode.TRACK
+    assert 0.0 < measured.held_speed_var_mps2(0.6) < (0.1 * 0.6) ** 2
+    assert SlipModel(Params()).held_speed_var_mps2(0.6) == 0.0  # at rest
