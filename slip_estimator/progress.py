@@ -12,12 +12,14 @@ LOG_EVERY_S = 5.0
 
 
 class Progress:
-    """Throttled progress on stderr (``enabled=False``: silent)."""
+    """Throttled progress on stderr (``enabled=False``: silent; ``every_s``: the interval, by
+    default ``TTY_EVERY_S`` on a terminal and ``LOG_EVERY_S`` otherwise)."""
 
-    def __init__(self, enabled: bool = True) -> None:
+    def __init__(self, enabled: bool = True, every_s: float | None = None) -> None:
         self.enabled = enabled
         self.tty = enabled and sys.stderr.isatty()
-        self._every_s = TTY_EVERY_S if self.tty else LOG_EVERY_S
+        self._every_s = every_s if every_s is not None else (
+            TTY_EVERY_S if self.tty else LOG_EVERY_S)
         self._last = time.monotonic() if not self.tty else 0.0
         self._pending = False
 

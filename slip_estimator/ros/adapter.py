@@ -222,6 +222,11 @@ class SlipEstimatorAdapter:
         except Exception:  # noqa: BLE001
             self.rejected[topic, REASON_CORE_ERROR] += 1
             return []
+        return self.slip_messages(estimates)
+
+    def slip_messages(self, estimates: list[SlipEstimate]) -> list[Output]:
+        """The slip messages of ``estimates``, counted as published (checked first only where
+        the frame name could read as a non-finite number)."""
         return self._pass_slip(self._slip_outputs(estimates))
 
     def count_exception(self, topic: str) -> None:

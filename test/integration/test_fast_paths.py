@@ -526,8 +526,7 @@ def test_adapter_checks_slip_messages_when_the_frame_reads_as_nan():
 
     for frame, dropped in (('base_link', 0), ('nan', 1)):
         adapter = SlipEstimatorAdapter(Params(base_frame=frame))
-        out = adapter._pass_slip(adapter._slip_outputs([SlipEstimate(1, 0.1, 0.01, 1, 0.5,
-                                                                     0.01, 0.55)]))
+        out = adapter.slip_messages([SlipEstimate(1, 0.1, 0.01, 1, 0.5, 0.01, 0.55)])
         assert adapter.dropped_non_finite[TOPIC_SLIP] == dropped
         assert len(out) == 2 - 2 * dropped
 

@@ -74,9 +74,8 @@ def test_import_pathfinder_bad_inputs_one_line(tmp_path, capsys):
 def test_progress_plain_lines_when_not_a_tty(monkeypatch):
     err = io.StringIO()
     monkeypatch.setattr(sys, 'stderr', err)
-    line = Progress()
+    line = Progress(every_s=0.0)  # due at once
     assert not line.tty
-    line._last = 0.0  # due at once
     line.show('reading: 10 messages')
     line.done('reading: 20 messages read')
     assert '\r' not in err.getvalue()
