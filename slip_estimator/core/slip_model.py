@@ -127,7 +127,7 @@ class SlipModel:
         self.aid_noise_var = 0.0
         self.changes = {'wheel': 0, 'body': 0}
         self.baseline: float | None = None
-        self._reset()
+        self.reset(from_rest=True)  # a new filter starts from rest (or is told otherwise)
 
     def _reset(self) -> None:
         self.mode = Mode.REST

@@ -31,11 +31,6 @@ class WheelAid:
         self._moving_speed_mps = own.moving_speed_threshold_mps
         self._aid_std_mps = own.wheel_aid_std_mps
         self.slip_model = SlipModel(params)
-        # A fresh filter starts from rest (a static alignment is ZUPT-anchored; an in-motion
-        # start resets the model again). Said explicitly: SlipModel() leaves it unset until the
-        # first stop, and a model whose first evaluated wheel sample is already moving (wheel
-        # stamps lagging the IMU) would otherwise fail on it.
-        self.slip_model.reset(from_rest=True)
 
     def reanchor(self, rim_speed_mps: float, turning: bool) -> AidDecision | None:
         """While recovering: the rim speed itself (zero slip assumed; not in a turn, whose
