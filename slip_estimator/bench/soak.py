@@ -42,8 +42,9 @@ from slip_estimator.ros.adapter import (
 )
 from slip_estimator.ros.convert import message_is_finite, ns_to_stamp
 from slip_estimator.sim.bag import sim_params
+from slip_estimator.sim.drives import default_scenario
 from slip_estimator.sim.rover import simulate
-from slip_estimator.sim.scenario import WHEEL_JOINT_NAMES, default_scenario
+from slip_estimator.sim.scenario import WHEEL_JOINT_NAMES
 
 NS = F.NS
 G_MPS2 = 9.80665

@@ -29,13 +29,13 @@ import numpy as np
 from slip_estimator.core.frames import rpy_to_dcm
 from slip_estimator.sim.robots import ROBOTS, RobotProfile
 from slip_estimator.sim.rover import SimResult, simulate
-from slip_estimator.sim.scenario import (
-    WHEEL_JOINT_NAMES,
+from slip_estimator.sim.drives import (
     default_scenario,
     mixed_scenario,
     patch_scenario,
     short_scenario,
 )
+from slip_estimator.sim.scenario import WHEEL_JOINT_NAMES
 
 TOPIC_IMU = '/imu/data'
 TOPIC_JOINTS = '/joint_states'

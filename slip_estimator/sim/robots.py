@@ -13,13 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from slip_estimator.sim.drives import _Builder
 from slip_estimator.sim.scenario import (
     GnssConfig,
     ImuErrorConfig,
     RoverConfig,
     ScenarioConfig,
     Segment,
-    _Builder,
 )
 
 

@@ -84,7 +84,7 @@ def check_finite(outputs: F.Outputs, summary=None) -> None:
 def sim(tmp_path_factory) -> Drive:
     from slip_estimator.sim.bag import sim_params, write_sim_bag
     from slip_estimator.sim.rover import simulate
-    from slip_estimator.sim.scenario import short_scenario
+    from slip_estimator.sim.drives import short_scenario
 
     work = tmp_path_factory.mktemp('faults')
     result = simulate(short_scenario(0))

@@ -186,7 +186,7 @@ def test_replay_simulated_bag_wheel_odometry_input(tmp_path):
     /wheel/odometry: every wheel sample gets a slip status, nothing is rejected or non-finite."""
     from slip_estimator.sim.bag import write_sim_bag
     from slip_estimator.sim.rover import simulate
-    from slip_estimator.sim.scenario import short_scenario
+    from slip_estimator.sim.drives import short_scenario
 
     write_sim_bag(simulate(short_scenario(0)), tmp_path / 'sim', tmp_path / 'params.yaml')
     params = load_params(tmp_path / 'params.yaml').replace(wheel_input='odometry')

@@ -9,10 +9,10 @@ import pytest
 
 from slip_estimator.core.frames import C_ENU_NED, rotvec_to_dcm, rpy_to_dcm
 from slip_estimator.core.planet import EARTH, earth_rate_n, gravity_n
+from slip_estimator.sim.drives import default_scenario, short_scenario
 from slip_estimator.sim.rover import SimResult, simulate
 from slip_estimator.sim.scenario import (WHEEL_IS_LEFT, WHEEL_JOINT_NAMES, ImuErrorConfig,
-                                         RoverConfig, Segment, TerrainConfig,
-                                         default_scenario, short_scenario)
+                                         RoverConfig, Segment, TerrainConfig)
 
 
 @pytest.fixture(scope='module')
