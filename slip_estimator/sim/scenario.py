@@ -344,13 +344,3 @@ class ScenarioConfig:
         """A copy with some fields changed."""
         return dataclasses.replace(self, **changes)
 
-
-_DRIVES = ('short_scenario', 'default_scenario', 'mixed_scenario', 'patch_scenario')
-
-
-def __getattr__(name: str) -> object:
-    """The drive builders moved to :mod:`.drives`; imported from here lazily (no cycle)."""
-    if name in _DRIVES:
-        from slip_estimator.sim import drives
-        return getattr(drives, name)
-    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
