@@ -25,5 +25,8 @@ study     :func:`~study.run_study` -> :class:`~study.Study` (saved / loaded as J
 evidence  the figures measured from the logs and the core-level runs behind the statements
 figures   the PNG figures (Agg)
 markdown  the report: a template filled by short section functions, every number from the study
+          (sections: the page and its general sections; sections_effects: evidence per effect;
+          sections_evidence: the core-level evidence runs; tables: cells, tables, metric
+          look-ups; verdicts: thresholds and the judgements drawn from the numbers)
 cli       the ``slip-estimator validate`` shell
 """

@@ -1,0 +1,148 @@
+"""Report sections built from the core-level evidence runs (``study.evidence``): injection
+patterns, body-side slip with the IMU speed scatter, and the undeclared effects."""
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from slip_estimator.effects import TEST17RUN_WINDOWS
+from slip_estimator.validation.tables import fmt, md_table
+
+
+def _slip_cell(m: dict[str, Any], digits: int, extra: str, tail: str) -> str:
+    """'balanced (recall medium / high / extreme<extra>), F1 f1, <tail>' of one run."""
+    rec = m['recall']
+    return (f'{fmt(m["balanced_accuracy"], digits)} ({fmt(rec[2], 2)} / {fmt(rec[3], 2)} / '
+            f'{fmt(rec[4], 2)}{extra}), F1 {fmt(m["sig_f1"], 2)}, {tail}')
+
+
+def pattern_section(rows: list[dict[str, Any]] | None) -> list[str]:
+    """C against D over several injection patterns (the spread behind one table row)."""
+    if not rows:
+        return []
+    table = []
+    for r in rows:
+        cells = [', '.join(f'x{f} {a:.0f}-{b:.0f} s' for a, b, f in r['pattern'])]
+        for key in ('C', 'D'):
+            m = r[key]
+            cells.append(_slip_cell(m, 3, f', n = {m["n_truth"][4]}', f'MAE {fmt(m["slip_mae"])}'))
+        table.append(cells)
+    return (['Across injection patterns (core runs on test17run, RTK truth; balanced accuracy '
+             '(recall medium / high / extreme, extreme truth samples), significant-slip F1, '
+             'slip MAE). Where the extreme class has a handful of samples (starts, stops, a '
+             'window on the 0.7 bound), those samples move the balanced accuracy by up to a '
+             'quarter; medium/high recall, F1 and MAE are the stable figures:', '']
+            + md_table(['injected windows', 'C (first design)', 'D (shipped)'], table) + [''])
+
+
+def _imu_scatter_text(sc: dict[str, list[float]] | None) -> str:
+    """Where body-side reading fails on this rover, from ``evidence.imu_speed_scatter``."""
+    if not sc:
+        return ''
+    scales = sc['scales_s']
+    at = {s: k for k, s in enumerate(scales)}
+    shown = [s for s in (1.0, 1.5, 2.0, 3.0) if s in at]
+    std = ' / '.join(fmt(sc['imu_vs_rim_std'][at[s]], 3) for s in shown)
+    p95 = ' / '.join(fmt(sc['imu_vs_rim_p95'][at[s]], 3) for s in shown)
+    floor = max(sc['rim_vs_rtk_std'])
+    walk = math.sqrt(max(0.0, sc['imu_vs_rim_std'][-1] ** 2 - sc['imu_vs_rim_std'][0] ** 2)
+                     / (scales[-1] - scales[0]))
+    step_mps = 0.2  # a medium body-side step on this log: slip +0.27 at 0.72 m/s
+    k15 = at.get(1.5, 0)
+    return (
+        f'Where it fails, measured (`validation.evidence.imu_speed_scatter`): the forward speed '
+        f'change the IMU alone gives (specific force less gravity, pitch from the gyro) differs '
+        f'from the rim speed\'s over {" / ".join(fmt(s, 1) for s in shown)} s by {std} m/s '
+        f'(RMS; 95th percentile {p95} m/s), while rim and RTK agree to {fmt(floor, 3)} m/s or '
+        f'better at every scale: the IMU speed wanders like a random walk of about '
+        f'{fmt(walk, 3)} m/s per sqrt(s) (vibration folded into the samples). A body-side '
+        f'change is read across its 1-3 s '
+        f'transition, so a medium step of this log (about {fmt(step_mps, 1)} m/s) is '
+        f'{fmt(step_mps / sc["imu_vs_rim_std"][k15], 1)} times the 1.5-s scatter, and '
+        f'excursions of that size with steady wheels and RTK occur in this one drive (largest '
+        f'over 1.5 s: {fmt(sc["imu_vs_rim_max"][k15], 3)} m/s): the IMU cannot tell such a '
+        'change from its own error, whatever the model. The slip model therefore keeps the '
+        'measured change only beyond its learned threshold; a missed onset followed by a '
+        'detected end is read as a run-ahead, which it refuses on level ground (a body cannot '
+        'run ahead of steady wheels without a downhill pull) and puts back to the baseline. '
+        'Each measured change starts from the held model before it, so errors chain until the '
+        'next stop or a return to the baseline ground.')
+
+
+def body_side_section(rows: list[dict[str, Any]] | None,
+                      scatter: dict[str, list[float]] | None = None) -> list[str]:
+    """The slip model on body-side and mixed slip of the real log."""
+    if not rows:
+        return []
+    keys = [k for k in rows[0] if k not in ('kind', 'wheel', 'body')]
+    table = []
+    for r in rows:
+        what = ', '.join([f'wheels x{f} {a:.0f}-{b:.0f} s' for a, b, f in r['wheel']]
+                         + [f'body x{f} {a:.0f}-{b:.0f} s' for a, b, f in r['body']])
+        cells = [f'{r["kind"]}: {what}']
+        for key in keys:
+            m = r[key]
+            cells.append(_slip_cell(m, 2, '', f'{fmt(m["v_rmse"], 3)} m/s'))
+        table.append(cells)
+    mean = {k: np.mean([r[k]['balanced_accuracy'] for r in rows if r['kind'] == 'body'])
+            for k in keys}
+    f1 = {k: np.mean([r[k]['sig_f1'] for r in rows if r['kind'] == 'body']) for k in keys}
+    return ([
+        '### The slip model on body-side slip (real IMU)', '',
+        ('A rover holds its commanded wheel rate: in soft ground the wheels keep turning and '
+         'the body slows, so the slip shows in the IMU, not the encoders. Here the real '
+         'test17run wheels are kept and the body is slowed inside windows (`effects.'
+         'inject_body_slip`: the derivative of the speed deficit taken out of the real '
+         'forward specific force, 1 s transitions; truth = RTK speed minus the deficit). '
+         'D is the shipped slip model (`core/slip_model.py`); "wheel side only" is D with the '
+         'body-side step test off (`slip_change_sigma=20`), which is what the earlier hold '
+         'mode could see; A is the paper. Cells: balanced accuracy (recall medium / high / '
+         'extreme), significant-slip F1, forward-speed RMSE against the truth:'), '']
+        + md_table(['windows'] + keys, table)
+        + ['', (f'Mean over the four body-side patterns: balanced accuracy '
+                + ', '.join(f'{k} {fmt(mean[k], 2)}' for k in keys) + '; F1 '
+                + ', '.join(f'{k} {fmt(f1[k], 2)}' for k in keys) + '.'), '',
+           _imu_scatter_text(scatter), ''])
+
+
+def undeclared_section(rows: list[dict[str, Any]] | None) -> list[str]:
+    """Issue 3 sec. 3: the shipped model on data with an effect its parameters do not declare."""
+    if not rows:
+        return []
+    lines = [
+        '## Undeclared effects (shipped model, declared parameters only)', '',
+        ('test17run with injected slip '
+         + ', '.join(f'x{f} for {a:.0f}-{b:.0f} s' for a, b, f in TEST17RUN_WINDOWS)
+         + ' and, one at a time, an effect the imported parameters do not declare, put into '
+         'the data by `effects.Effects` (the IMU rotated off its declared mounting, the gyro '
+         'scaled, the wheel stamps shifted, the rim speeds scaled as by a wrong declared '
+         'radius); run through the core (`effects.score_on_log`, the same code as the tests in '
+         '`test/integration/test_effects.py`), truth from RTK. Acceptance levels: balanced accuracy >= 0.80, '
+         'medium and high recall >= 0.70, significant-slip F1 >= 0.85, speed RMSE <= 0.05 m/s '
+         '(plain log).'), '']
+    table = []
+    for r in rows:
+        rec = r['recall']
+        table.append([r['effect'], fmt(r['balanced_accuracy']), fmt(rec[2], 2), fmt(rec[3], 2),
+                      fmt(r['sig_f1'], 2), fmt(r['slip_mae']), fmt(r['v_rmse_injected']),
+                      fmt(r['v_rmse_plain']),
+                      '; '.join(r['suspects']) if r['suspects'] else '(none)'])
+    lines += md_table(['undeclared effect', 'bal. acc.', 'recall med', 'high', 'sig. F1',
+                      'slip MAE', 'v RMSE inj. [m/s]', 'v RMSE plain', 'suspected in /diagnostics'],
+                     table)
+    lines += ['', ('A radius declared 15 % too large reads as +0.15 slip on all ordinary ground '
+                   'and moves the truth with it (the truth uses the declared radius, as any '
+                   'user would): radius and slip cannot be told apart without a speed '
+                   'reference, so the node names the radius as the likely cause rather than '
+                   'correcting it (its lower medium recall is the x1.4 window, whose truth '
+                   'the radius error moves onto the 0.4 class bound). The zero-rate suspicion '
+                   'is the real IMU\'s (gyro noise above the datasheet at rest, see below), '
+                   'present in every row. Mounting errors of a few degrees and a 2 % gyro '
+                   'scale factor leave the residual means within their noise on this straight '
+                   'drive, so they are not named; they also leave the slip accuracy where it '
+                   'was. A wheel/IMU timestamp offset is not named by the residual means; the '
+                   'online lag monitor names it when the rover turns (this test drive is '
+                   'straight), and it costs accuracy at every slip step.'), '']
+    return lines
