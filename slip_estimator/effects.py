@@ -164,7 +164,7 @@ def shift_track(gnss_t_s: np.ndarray, p_enu_m: np.ndarray, imu_t_s: np.ndarray,
                 deficit_mps: np.ndarray, window_s: float = 1.0) -> np.ndarray:
     """GNSS positions moved back along the horizontal course by the distance not travelled
     (the integral of the speed deficit), so a GNSS truth sees the slowed body."""
-    from slip_estimator.evaluation import gnss_velocity_enu
+    from slip_estimator.truth import gnss_velocity_enu
 
     lost = np.concatenate([[0.0], np.cumsum(0.5 * (deficit_mps[1:] + deficit_mps[:-1])
                                             * np.diff(imu_t_s))])
@@ -183,7 +183,7 @@ def shift_track(gnss_t_s: np.ndarray, p_enu_m: np.ndarray, imu_t_s: np.ndarray,
 
 def gnss_speed(log: Any, t_s: np.ndarray, window_s: float = 1.0) -> np.ndarray:
     """GNSS speed of a log at ``t_s`` (NaN gaps filled by interpolation), m/s."""
-    from slip_estimator.evaluation import gnss_velocity_enu
+    from slip_estimator.truth import gnss_velocity_enu
     from slip_estimator.pathfinder import gnss_enu
 
     v = np.linalg.norm(gnss_velocity_enu(log.gnss_t_s, gnss_enu(log), t_s, window_s),
@@ -221,7 +221,7 @@ def run_core(params: Params, data: SensorData, odometry_every: int = 10,
 class LogScore:
     """Slip and speed figures of one core run on a real log against RTK truth."""
 
-    slip: Any  # evaluation.SlipResult
+    slip: Any  # metrics.SlipResult
     speed_rmse_mps: float
     estimator: SlipEstimator
 
@@ -238,9 +238,10 @@ def score_on_log(log: Any, params: Params, windows: Sequence[Window] = (),
     (it is indistinguishable from slip). The speed RMSE compares the odometry body-x speed
     with the truth speed at the same instants while driving (> 0.1 m/s).
     """
-    from slip_estimator.evaluation import evaluate_slip, gnss_slip_truth, slip_class
     from slip_estimator.core.slip import slip_ratio_array
+    from slip_estimator.metrics import evaluate_slip
     from slip_estimator.pathfinder import gnss_enu
+    from slip_estimator.truth import gnss_slip_truth, slip_class
 
     t0_ns = round(float(log.imu_t_s[0]) * 1e9)
     clean = from_pathfinder(log, params)

@@ -281,7 +281,7 @@ def _fmt(x: float | None, unit: str = '', digits: int = 3) -> str:
 
 def summary_text(ev: RunEvaluation) -> str:
     """Key figures with the truth they rest on."""
-    from slip_estimator.evaluation import format_confusion
+    from slip_estimator.metrics import format_confusion
 
     lines = [f'truth: {ev.truth_source}   (valid: '
              + ', '.join(f'{k}={"yes" if v else "NO"}' for k, v in ev.valid.items()) + ')']

@@ -15,7 +15,7 @@ import pytest
 
 from slip_estimator.core.params import Params
 from slip_estimator.effects import Effects, run_core, with_effects
-from slip_estimator.evaluation import evaluate_slip
+from slip_estimator.metrics import evaluate_slip
 from slip_estimator.sim import short_scenario, simulate
 from slip_estimator.sim.bag import sim_params
 from slip_estimator.streams import from_simulation

@@ -225,7 +225,7 @@ def release_scatter(log: Any, params: Params, period_s: float = 3.0, release_s: 
     from slip_estimator.core.estimator import SlipEstimator
     from slip_estimator.effects import run_core
     from slip_estimator.streams import from_pathfinder
-    from slip_estimator.evaluation import gnss_velocity_enu
+    from slip_estimator.truth import gnss_velocity_enu
 
     t0 = float(log.imu_t_s[0])
     p_enu = pf.gnss_enu(log)

@@ -208,7 +208,7 @@ def run_case(task: CaseTask) -> CaseResult:
 
 
 def _slip_class_metrics(s: Any) -> dict[str, float]:
-    """The slip classification figures of an ``evaluation.SlipResult``."""
+    """The slip classification figures of an ``metrics.SlipResult``."""
     m = dict(balanced_accuracy=s.balanced_accuracy,
              balanced_accuracy_strict=s.balanced_accuracy_strict, coverage=s.coverage,
              sig_precision=s.significant_precision, sig_recall=s.significant_recall,
@@ -224,7 +224,8 @@ def _speed_metrics(run: Any, ev: Any, t0_ns: int, m: dict[str, float],
     """Forward speed of the odometry output against the GNSS speed at the same instants:
     independent of the wheel timing, so configurations with and without the latency model
     are compared on equal terms. Adds to ``m`` and ``series``."""
-    from slip_estimator.evaluation import evaluate_speed, gnss_velocity_enu
+    from slip_estimator.metrics import evaluate_speed
+    from slip_estimator.truth import gnss_velocity_enu
 
     tg = ev.truth_stamp_ns * 1e-9
     to = run.est_odom_stamp_ns * 1e-9
@@ -266,7 +267,7 @@ def _low_slip_metrics(run: Any, gt: Any, t0_ns: int, m: dict[str, float],
                       series: dict[str, np.ndarray]) -> None:
     """The reported slip where the truth says low slip (its bias) and while driving; adds
     to ``m`` and ``series``."""
-    from slip_estimator.evaluation import match_nearest
+    from slip_estimator.metrics import match_nearest
 
     idx = match_nearest(gt.stamp_ns, run.est_slip_stamp_ns, int(0.05 * NS))
     es = np.where(idx >= 0, run.est_slip[np.maximum(idx, 0)], np.nan)

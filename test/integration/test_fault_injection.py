@@ -16,7 +16,7 @@ One fault at a time is injected into the input stream of the simulator's ``short
    with ``-s`` and written down in the case table.
 
 The real log has no simulator truth; there the truth is the slip class from its RTK GNSS
-(``evaluation.gnss_slip_truth``, paper eq. 30) and the same comparison with the clean replay is
+(``truth.gnss_slip_truth``, paper eq. 30) and the same comparison with the clean replay is
 made. Faults that ``replay_bag`` cannot express because it sorts by header stamp (arrival-order
 jitter, a looped bag) are also fed in arrival order to the adapter, as the live node sees them.
 
@@ -346,13 +346,13 @@ def test_fault_tables_can_fail(sim, clean_correct):
 class RealLog:
     drive: Drive
     truth: dict[int, int]
-    """Wheel stamp -> slip class from RTK GNSS (evaluation.gnss_slip_truth, paper eq. 30)."""
+    """Wheel stamp -> slip class from RTK GNSS (truth.gnss_slip_truth, paper eq. 30)."""
 
 
 @pytest.fixture(scope='module')
 def pathfinder(tmp_path_factory) -> RealLog:
     mat = mat_or_skip('test17run')
-    from slip_estimator.evaluation import gnss_slip_truth
+    from slip_estimator.truth import gnss_slip_truth
     from slip_estimator.pathfinder import gnss_enu, import_pathfinder, rim_speed_mps
 
     work = tmp_path_factory.mktemp('pathfinder')

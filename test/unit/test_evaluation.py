@@ -1,4 +1,4 @@
-"""Closed-form checks of slip_estimator.evaluation (no ROS, no files)."""
+"""Closed-form checks of slip_estimator.metrics, .truth and .evaluation (no ROS, no files)."""
 from __future__ import annotations
 
 import math
@@ -8,19 +8,16 @@ import sys
 import numpy as np
 import pytest
 
-from slip_estimator.evaluation import (
+from slip_estimator.metrics import (
     confusion_matrix,
     evaluate_slip,
     evaluate_speed,
     evaluate_trajectory,
-    gnss_slip_truth,
-    gnss_velocity_enu,
     match_nearest,
     path_length,
-    slip_class,
-    slip_ratio,
     wrap_deg,
 )
+from slip_estimator.truth import gnss_slip_truth, gnss_velocity_enu, slip_class, slip_ratio
 
 NS = 1_000_000_000
 
