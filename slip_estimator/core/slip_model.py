@@ -46,6 +46,7 @@ from collections import deque
 from dataclasses import dataclass
 
 from slip_estimator.core.params import Params
+from slip_estimator.core.run_ahead import RunAheadCheck
 from slip_estimator.core.slip import slip_ratio
 from slip_estimator.core.step_test import SCALES_S, StepTest
 
@@ -60,16 +61,8 @@ _WHEEL_CHANGE_SAMPLES = 3
 """Consecutive samples of a wheel-side discrepancy that make a change (not one noisy sample)."""
 _RIM_MEMORY_S = 2.0
 """A wheel-side change needs the rim speed to have moved within this long."""
-_RUN_AHEAD_PITCH_RAD = math.radians(2.0)
-"""Nose-down pitch below which a body running ahead of its wheels is physically possible
-(gravity along the slope beating the rolling resistance of soft ground)."""
 _QUIET_AFTER_GAP_S = 4.0
 """After an IMU gap the filter settles its attitude and biases: no body-side step test."""
-_RUN_AHEAD_MIN_SLIP = 0.15
-"""A run-ahead this large needs the downhill pull (a few percent: slope, encoder scale, skid)."""
-_RUN_AHEAD_MAX_SLIP = 0.5
-"""A body at twice the speed of wheels held at their rate slides rather than rolls: such a
-reading is the INS (an unobserved bias after a start in motion)."""
 _ASSUMED_SLIP_STD = 0.1
 """1-sigma of a slip nothing measured (a start in motion, before a stop): half the low class."""
 _STOP_S = 0.5
@@ -127,6 +120,7 @@ class SlipModel:
         self.aid_noise_var = 0.0
         self.changes = {'wheel': 0, 'body': 0}
         self.baseline: float | None = None
+        self._run_ahead = RunAheadCheck()
         self.reset(from_rest=True)  # a new filter starts from rest (or is told otherwise)
 
     def _reset(self) -> None:
@@ -143,7 +137,7 @@ class SlipModel:
         self.step_test.clear()
         self._stopped_since_ns: int | None = None
         self._last_t_ns = 0
-        self._pitch_rad = 0.0
+        self._run_ahead.reset()
         self._aid_accel = 0.0
         self._chain_var = 0.0
         self._assumed = False  # the held slip rests on an assumption, not a measurement
@@ -170,7 +164,7 @@ class SlipModel:
              ) -> AidDecision | None:
         self._last_t_ns = t_ns
         self._aid_accel = aid_accel_mps2
-        self._pitch_rad = pitch_rad
+        self._run_ahead.add(t_ns, pitch_rad)
         if not moving:
             stopped_since = self._stopped_since_ns
             self.reset(from_rest=True)
@@ -262,13 +256,9 @@ class SlipModel:
         # better than that (a good IMU resolves smaller slip differences).
         h = min(self.wheel_change_mps(w),
                 p.slip_continuity_sigma * math.sqrt(self.spread_var[-1]))
-        if not self._from_rest and (measured < -_RUN_AHEAD_MAX_SLIP or (
-                measured < -_RUN_AHEAD_MIN_SLIP and self._pitch_rad > -_RUN_AHEAD_PITCH_RAD)):
-            # The body cannot run ahead of wheels held at a steady rate on level or rising
-            # ground (that takes a downhill pull), nor at twice their speed on any slope a
-            # rover drives: the INS says so only when it missed the start of a slowdown it now
-            # sees end, or drifted. Back to the ground's baseline (none yet after a start in
-            # motion: the wheels' speed).
+        if not self._from_rest and self._run_ahead.implausible(measured):
+            # A run-ahead no slope explains (core.run_ahead) is the INS: back to the
+            # ground's baseline (none yet after a start in motion: the wheels' speed).
             measured = baseline if baseline is not None else 0.0
             self._assumed = self._assumed or baseline is None
         if self._from_rest:

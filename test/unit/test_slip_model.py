@@ -98,6 +98,39 @@ def test_body_running_ahead_of_its_wheels_needs_a_downhill(pitch_deg, expected):
     assert np.median(held) == pytest.approx(expected, abs=0.05)
 
 
+def test_a_run_ahead_starting_at_a_crest_is_kept():
+    """Over a crest the front wheels are on the down-slope before the body pitches: the body
+    speeds up while the pitch still reads almost level (-1.2 deg when the new slip settles)
+    and only then tips to -8 deg. The slope ahead (pitch rate) makes the run-ahead possible;
+    judged on the pitch alone it was refused and the aid fought the INS down the hill."""
+    t, start = drive()
+    w = 0.6 * start
+    s = 0.05 + (-0.3 - 0.05) * (smooth_step(t, 25.0, 1.5) - smooth_step(t, 40.0, 1.5))
+    v = np.where(s >= 0, w * (1.0 - s), w / (1.0 + s))
+    pitch = np.radians(-8.0) * (smooth_step(t, 25.5, 6.0) - smooth_step(t, 38.0, 6.0))
+    model, v_est = run(w, v, pitch_rad=pitch)
+    inside = (t > 29.0) & (t < 39.0)
+    from slip_estimator.core.slip import slip_ratio_array
+    assert np.median(slip_ratio_array(v_est[inside], w[inside])) == pytest.approx(-0.3,
+                                                                                  abs=0.05)
+
+
+def test_run_ahead_check_judges_the_slope_ahead():
+    """Pitch starting to fall at 3 deg/s: level by the pitch alone, but the smoothed rate puts
+    the slope 2 s ahead beyond -2 deg, so a run-ahead of 0.3 is possible; pitching up it is
+    not; 0.6 never is."""
+    from slip_estimator.core.run_ahead import RunAheadCheck
+    check = RunAheadCheck()
+    for k in range(30):  # 3 s at 10 Hz, tipping only in the last 0.2 s (to -0.6 deg)
+        check.add(int(k * 1e8), math.radians(-0.3 * (k - 27)) if k > 27 else 0.0)
+    assert check.pitch_ahead_rad < math.radians(-2.0)
+    assert not check.implausible(-0.3) and check.implausible(-0.6)
+    rising = RunAheadCheck()
+    for k in range(30):
+        rising.add(int(k * 1e8), math.radians(0.3 * k - 3.0))
+    assert rising.implausible(-0.3) and not rising.implausible(-0.1)
+
+
 def test_wheels_spinning_up_at_an_unchanged_body_speed_is_read_as_slip():
     t, start = drive()
     v = 0.5 * start
