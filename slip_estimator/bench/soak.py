@@ -40,7 +40,8 @@ from slip_estimator.ros.adapter import (
     TOPIC_JOINT_STATES,
     SlipEstimatorAdapter,
 )
-from slip_estimator.ros.convert import message_is_finite, ns_to_stamp
+from slip_estimator.ros.convert import ns_to_stamp
+from slip_estimator.ros.finite import message_is_finite
 from slip_estimator.sim.bag import sim_params
 from slip_estimator.sim.drives import default_scenario
 from slip_estimator.sim.rover import simulate

@@ -16,8 +16,8 @@ Bad input is counted, never raised: each input topic has a ``received`` counter 
 ``non_monotonic`` for IMU stamps that do not increase and ``core_error`` for samples the core
 raised on). No outgoing message carries NaN/Inf: odometry and ``/diagnostics`` are checked and
 dropped (and counted) if they have any; the slip messages cannot have any by construction
-(:func:`~slip_estimator.ros.convert.slip_to_diagnostic_array` formats non-finite values as
-'unknown', :func:`~slip_estimator.ros.convert.slip_to_vector3` is built only from a known,
+(:func:`~slip_estimator.ros.publish.slip_to_diagnostic_array` formats non-finite values as
+'unknown', :func:`~slip_estimator.ros.publish.slip_to_vector3` is built only from a known,
 finite slip), so they skip the check unless the frame name itself reads as a number.
 
 Parameter changes (:meth:`SlipEstimatorAdapter.request_params`) are validated by the caller and
@@ -43,7 +43,7 @@ from slip_estimator.core import frames
 from slip_estimator.core.estimator import SlipEstimator
 from slip_estimator.core.params import Params
 from slip_estimator.core.types import Health, SlipEstimate, WheelSample
-from slip_estimator.ros import convert
+from slip_estimator.ros import convert, finite, publish
 
 TOPIC_IMU = '/imu/data'
 TOPIC_JOINT_STATES = '/joint_states'
@@ -106,7 +106,7 @@ class SlipEstimatorAdapter:
         self._C_imu_b = frames.imu_to_body_dcm(params.imu_to_base_rpy)
         self._joint_rates = convert.JointRatesFromPositions(
             params.max_wheel_speed_mps / params.wheel_radius)
-        self._frame_is_finite_text = convert.text_is_finite(params.base_frame)
+        self._frame_is_finite_text = finite.text_is_finite(params.base_frame)
         self._odom_period_ns = (0 if params.odometry_rate_hz == 0.0
                                 else round(1e9 / params.odometry_rate_hz))
         self._diag_period_ns = round(params.diagnostics_period_s * 1e9)
@@ -238,8 +238,8 @@ class SlipEstimatorAdapter:
         out: list[Output] = []
         frame = self.params.base_frame
         for est in estimates:
-            out.append((TOPIC_SLIP, convert.slip_to_diagnostic_array(est, frame)))
-            vec = convert.slip_to_vector3(est, frame)
+            out.append((TOPIC_SLIP, publish.slip_to_diagnostic_array(est, frame)))
+            vec = publish.slip_to_vector3(est, frame)
             if vec is not None:
                 out.append((TOPIC_SLIP_RATIO, vec))
         return out
@@ -267,7 +267,7 @@ class SlipEstimatorAdapter:
         nxt = (self._next_odom_ns or stamp_ns) + self._odom_period_ns
         self._next_odom_ns = nxt if nxt > stamp_ns else stamp_ns + self._odom_period_ns
         p = self.params
-        return [(TOPIC_ODOMETRY, convert.odometry_to_msg(odo, p.odom_frame, p.base_frame))]
+        return [(TOPIC_ODOMETRY, publish.odometry_to_msg(odo, p.odom_frame, p.base_frame))]
 
     def _diagnostics_output(self, stamp_ns: int) -> list[Output]:
         if self._next_diag_ns is not None and stamp_ns < self._next_diag_ns:
@@ -304,13 +304,13 @@ class SlipEstimatorAdapter:
         self._received_at_last_diag = Counter(self.received)
         self._rejected_at_last_diag = sum(self.rejected.values())
         self._dropped_at_last_diag = sum(self.dropped_non_finite.values())
-        return convert.health_to_diagnostic_array(
+        return publish.health_to_diagnostic_array(
             Health(level=level, message=message, values=health.values), stamp_ns,
             self.params.base_frame, values)
 
     def stale_diagnostics(self, stamp_ns: int, message: str = 'no IMU data') -> list[Output]:
         """A STALE ``/diagnostics`` report (the live node's wall-clock watchdog)."""
-        msg = convert.stale_diagnostic_array(message, stamp_ns, self.params.base_frame,
+        msg = publish.stale_diagnostic_array(message, stamp_ns, self.params.base_frame,
                                              self.counter_values())
         return self._guard([(TOPIC_DIAGNOSTICS, msg)])
 
@@ -337,7 +337,7 @@ class SlipEstimatorAdapter:
         """Drop (and count) messages with NaN/Inf; count the rest as published."""
         kept = []
         for topic, msg in out:
-            if convert.message_is_finite(msg):
+            if finite.message_is_finite(msg):
                 self.published[topic] += 1
                 kept.append((topic, msg))
             else:

@@ -358,7 +358,7 @@ _INT_TYPES = frozenset({'boolean', 'octet', 'char', 'byte', 'int8', 'uint8', 'in
 
 def message_is_finite_walk(msg) -> bool:
     """The guard as a plain recursive walk over the fields (how it was written before)."""
-    from slip_estimator.ros.convert import text_is_finite
+    from slip_estimator.ros.finite import text_is_finite
 
     for name, kind in msg.get_fields_and_field_types().items():
         if kind.split('[')[0].removeprefix('sequence<').rstrip('>') in _INT_TYPES:
@@ -382,7 +382,7 @@ def message_is_finite_walk(msg) -> bool:
 
 def _sample_messages():
     from slip_estimator.core.types import Health, OdometryEstimate
-    from slip_estimator.ros import convert
+    from slip_estimator.ros import publish
 
     odo = OdometryEstimate(1_234_567_890_123, np.array([1.0, -2.0, 3.0]),
                            np.array([0.5, 0.5, -0.5, 0.5]), np.array([0.1, 0.2, 0.3]),
@@ -390,10 +390,10 @@ def _sample_messages():
     est = SlipEstimate(1_000, 0.1, 0.01, 1, 0.5, 0.01, 0.55, 0.05, 0.15)
     health = Health(1, 'running: suspected: something', {'a': 1.5, 'b': [0.1, 0.2], 'c': 3})
     return {
-        'odometry': lambda: convert.odometry_to_msg(odo, 'odom', 'base_link'),
-        'slip': lambda: convert.slip_to_diagnostic_array(est, 'base_link'),
-        'ratio': lambda: convert.slip_to_vector3(est, 'base_link'),
-        'health': lambda: convert.health_to_diagnostic_array(health, 5, 'base_link'),
+        'odometry': lambda: publish.odometry_to_msg(odo, 'odom', 'base_link'),
+        'slip': lambda: publish.slip_to_diagnostic_array(est, 'base_link'),
+        'ratio': lambda: publish.slip_to_vector3(est, 'base_link'),
+        'health': lambda: publish.health_to_diagnostic_array(health, 5, 'base_link'),
     }
 
 
@@ -429,7 +429,7 @@ def _set(msg, path, value):
 
 
 def test_guard_gives_the_verdicts_of_the_field_walk():
-    from slip_estimator.ros.convert import message_is_finite
+    from slip_estimator.ros.finite import message_is_finite
 
     for name, make in _sample_messages().items():
         msg = make()
@@ -450,7 +450,7 @@ def test_guard_gives_the_verdicts_of_the_field_walk():
 
 
 def test_text_is_finite_agrees_with_float():
-    from slip_estimator.ros.convert import text_is_finite
+    from slip_estimator.ros.finite import text_is_finite
 
     for text in ('nan', 'NaN', ' -inf', '+Infinity', '1e999', '-1e999 ', 'odom', 'base_link',
                  '0.5', 'unknown', '.5', '\u0661e999', ' nan ', 'inf', 'in', '', 'x' * 20,
@@ -468,7 +468,7 @@ def test_slot_built_messages_equal_the_constructed_ones(monkeypatch):
     constructors."""
     from rclpy.serialization import deserialize_message, serialize_message
 
-    from slip_estimator.ros import convert, msgbuild
+    from slip_estimator.ros import convert, msgbuild, publish
 
     assert msgbuild.FAST_BUILD  # the slot builder is in use on this ROS distribution
     stamps = (1_234_567_890_123, -1_500_000_000, 0)
@@ -477,7 +477,7 @@ def test_slot_built_messages_equal_the_constructed_ones(monkeypatch):
         out = []
         for stamp in stamps:
             out += [make() for make in _sample_messages().values()]
-            out.append(convert.stale_diagnostic_array('no IMU data', stamp, 'base_link',
+            out.append(publish.stale_diagnostic_array('no IMU data', stamp, 'base_link',
                                                       {'x': 1.0, 'y': 'text'}))
             out.append(convert.ns_to_stamp(stamp))
         return out
@@ -504,11 +504,8 @@ def test_slip_messages_are_finite_by_construction(field, bad):
     SlipEstimate carries, the messages built from it have none."""
     from dataclasses import replace
 
-    from slip_estimator.ros.convert import (
-        message_is_finite,
-        slip_to_diagnostic_array,
-        slip_to_vector3,
-    )
+    from slip_estimator.ros.finite import message_is_finite
+    from slip_estimator.ros.publish import slip_to_diagnostic_array, slip_to_vector3
 
     for cls in (-1, 0, 2, 4):
         est = replace(SlipEstimate(1_000, 0.1, 0.01, cls, 0.5, 0.01, 0.55, 0.05, 0.15),

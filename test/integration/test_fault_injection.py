@@ -43,7 +43,7 @@ from slip_estimator.ros.adapter import (
     TOPIC_ODOMETRY,
     TOPIC_SLIP,
 )
-from slip_estimator.ros.convert import message_is_finite
+from slip_estimator.ros.finite import message_is_finite
 
 NS = F.NS
 G_MPS2 = 9.80665

@@ -18,7 +18,8 @@ from slip_estimator.bagio import bag_topics, read_messages
 from slip_estimator.paramfile import load_params, save_params
 from slip_estimator.replay import replay_bag, replay_main
 from slip_estimator.ros import adapter as ad
-from slip_estimator.ros.convert import message_is_finite, ns_to_stamp, stamp_to_ns
+from slip_estimator.ros.convert import ns_to_stamp, stamp_to_ns
+from slip_estimator.ros.finite import message_is_finite
 
 def output_stream(bag: Path) -> list[tuple[str, int, bytes]]:
     """(topic, log time, canonical CDR bytes) of every message of a bag, in bag order.

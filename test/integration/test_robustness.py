@@ -47,7 +47,8 @@ from slip_estimator.ros.adapter import (
     TOPIC_SLIP,
     SlipEstimatorAdapter,
 )
-from slip_estimator.ros.convert import message_is_finite, ns_to_stamp, stamp_to_ns
+from slip_estimator.ros.convert import ns_to_stamp, stamp_to_ns
+from slip_estimator.ros.finite import message_is_finite
 
 NS = 1_000_000_000
 T0_NS = 1_700_000_000 * NS

@@ -28,7 +28,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, JointState
 
 from slip_estimator.paramfile import save_params
-from slip_estimator.ros.convert import message_is_finite
+from slip_estimator.ros.finite import message_is_finite
 
 
 PLAY_SPEED = 2.0

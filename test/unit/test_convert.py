@@ -14,7 +14,7 @@ from sensor_msgs.msg import Imu, JointState
 
 from slip_estimator.core import frames
 from slip_estimator.core.types import Health, ImuSample, OdometryEstimate, SlipEstimate, WheelSample
-from slip_estimator.ros import convert
+from slip_estimator.ros import convert, finite, publish
 
 G = 9.81
 NAMES = ['front_left_wheel_joint', 'front_right_wheel_joint',
@@ -169,7 +169,7 @@ def test_odometry_to_msg():
                            q_ob_wxyz=np.array([0.5, 0.5, 0.5, 0.5]),
                            v_ob_b=np.array([0.4, 0.0, 0.0]), omega_ob_b=np.array([0, 0, 0.1]),
                            pose_covariance=P, twist_covariance=2 * P)
-    msg = convert.odometry_to_msg(odo, 'odom', 'base_link')
+    msg = publish.odometry_to_msg(odo, 'odom', 'base_link')
     assert (msg.header.frame_id, msg.child_frame_id) == ('odom', 'base_link')
     assert convert.stamp_to_ns(msg.header.stamp) == 3_000_000_001
     q = msg.pose.pose.orientation
@@ -178,9 +178,9 @@ def test_odometry_to_msg():
     assert msg.twist.twist.angular.z == 0.1
     assert msg.pose.covariance[7] == 7.0  # row-major: (1, 1)
     assert msg.twist.covariance[35] == 70.0
-    assert convert.message_is_finite(msg)
+    assert finite.message_is_finite(msg)
     msg.twist.covariance[3] = math.nan
-    assert not convert.message_is_finite(msg)
+    assert not finite.message_is_finite(msg)
 
 
 @pytest.mark.parametrize('cls,level,name', [
@@ -188,7 +188,7 @@ def test_odometry_to_msg():
     (2, DiagnosticStatus.WARN, 'medium'), (3, DiagnosticStatus.ERROR, 'high'),
     (4, DiagnosticStatus.ERROR, 'extreme'), (-1, DiagnosticStatus.STALE, 'unknown')])
 def test_slip_diagnostic_levels(cls, level, name):
-    diag = convert.slip_to_diagnostic_array(slip(slip_class=cls), 'base_link')
+    diag = publish.slip_to_diagnostic_array(slip(slip_class=cls), 'base_link')
     status = diag.status[0]
     assert (status.level, status.message, status.name, status.hardware_id) == (
         level, name, 'slip_estimator: wheel slip', 'base_link')
@@ -196,12 +196,12 @@ def test_slip_diagnostic_levels(cls, level, name):
 
 
 def test_slip_diagnostic_values_and_unknown():
-    kv = values(convert.slip_to_diagnostic_array(
+    kv = values(publish.slip_to_diagnostic_array(
         slip(slip_ratio_left=0.25, slip_ratio_right=0.35), 'base_link'))
     assert {'slip_ratio', 'slip_class', 'slip_ratio_std', 'body_speed', 'wheel_speed',
             'slip_ratio_left', 'slip_ratio_right'} <= set(kv)
     assert float(kv['slip_ratio']) == 0.3 and kv['slip_class'] == '2'
-    kv = values(convert.slip_to_diagnostic_array(
+    kv = values(publish.slip_to_diagnostic_array(
         slip(slip_ratio=math.nan, slip_ratio_std=math.inf, slip_class=-1,
              body_speed_mps=math.nan), 'base_link'))
     assert 'slip_ratio_left' not in kv
@@ -210,25 +210,25 @@ def test_slip_diagnostic_values_and_unknown():
 
 
 def test_slip_vector3_only_when_known():
-    vec = convert.slip_to_vector3(slip(), 'base_link')
+    vec = publish.slip_to_vector3(slip(), 'base_link')
     assert (vec.vector.x, vec.vector.y, vec.vector.z) == (0.3, 0.02, 2.0)
     assert convert.stamp_to_ns(vec.header.stamp) == 5_000_000_123
-    assert convert.slip_to_vector3(slip(slip_ratio=math.nan, slip_class=-1), 'b') is None
+    assert publish.slip_to_vector3(slip(slip_ratio=math.nan, slip_class=-1), 'b') is None
 
 
 def test_health_diagnostics_formatting():
     health = Health(level=1, message='aligning', values={
         'nis': 1.23456789, 'bias': np.array([1e-3, math.nan, 2.0]), 'count': 3,
         'ok': True, 'x': math.inf})
-    diag = convert.health_to_diagnostic_array(health, 42, 'base_link', {'/imu/data received': 7})
+    diag = publish.health_to_diagnostic_array(health, 42, 'base_link', {'/imu/data received': 7})
     status = diag.status[0]
     assert status.level == DiagnosticStatus.WARN and status.message == 'aligning'
     kv = values(diag)
     assert kv == {'nis': '1.23457', 'bias': '[0.001, unknown, 2]', 'count': '3',
                   'ok': 'true', 'x': 'unknown', '/imu/data received': '7'}
-    assert convert.message_is_finite(diag)
+    assert finite.message_is_finite(diag)
     diag.status[0].values[0].value = 'nan'
-    assert not convert.message_is_finite(diag)
+    assert not finite.message_is_finite(diag)
 
 
 def _positions_msg(stamp_ns: int, positions):
