@@ -84,7 +84,7 @@ COMMANDS = {
     'simulate': _lazy('slip_estimator.sim.bag', 'simulate_main'),
     'replay': _lazy('slip_estimator.replay', 'replay_main'),
     'evaluate': _lazy('slip_estimator.report', 'evaluate_main'),
-    'import-pathfinder': _lazy('slip_estimator.report', 'import_main'),
+    'import-pathfinder': _lazy('slip_estimator.pathfinder.cli', 'import_main'),
     'bench': _lazy('slip_estimator.bench.cli', 'bench_main', (('--pathfinder', 's5t1.mat'),)),
     'validate': _lazy('slip_estimator.validation.cli', 'validate_main', (('--data-dir', ''),)),
     'default-config': _default_config,

@@ -1,7 +1,7 @@
-"""Command-line shells: ``slip-estimator evaluate`` and ``slip-estimator import-pathfinder``.
+"""Command-line shell of ``slip-estimator evaluate``.
 
-Thin by design (parse arguments, read bags, call :mod:`slip_estimator.evaluation`, draw plots
-with the Agg backend, show progress). The bag reader :func:`load_run` turns an input bag and an
+Thin by design (parse arguments, read bags, call :mod:`slip_estimator.evaluation`, draw the
+figures of :mod:`slip_estimator.report_figures`, show progress). The bag reader :func:`load_run` turns an input bag and an
 estimator output bag into a plain :class:`~slip_estimator.evaluation.RunData`.
 """
 from __future__ import annotations
@@ -50,7 +50,7 @@ class _Progress:
         self._line.done(f'{self.label}: {n} messages read')
 
 
-def _first_line(exc: BaseException) -> str:
+def first_line(exc: BaseException) -> str:
     return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
@@ -163,118 +163,6 @@ def load_run(input_bag: str | Path, output_bag: str | Path, *, wheel_radius_m: f
 # --------------------------------------------------------------------------------------------
 # Figures
 # --------------------------------------------------------------------------------------------
-def write_figures(run: RunData, ev: RunEvaluation, report_dir: Path) -> list[Path]:
-    """Trajectory, slip vs truth over time, speed-error histogram, confusion matrix (PNG)."""
-    import matplotlib
-
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    report_dir.mkdir(parents=True, exist_ok=True)
-    files = []
-    for name, draw in (('trajectory', _trajectory_figure), ('slip_vs_truth', _slip_vs_truth_figure),
-                       ('velocity_error_hist', _velocity_error_hist_figure),
-                       ('confusion_matrix', _confusion_matrix_figure)):
-        fig = draw(run, ev, plt)
-        files.append(report_dir / f'{name}.png')
-        fig.savefig(files[-1], dpi=120)
-        plt.close(fig)
-    return files
-
-
-def _trajectory_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
-    """Estimated and true trajectory in the odom frame."""
-    fig, ax = plt.subplots(figsize=(7, 7))
-    if ev.truth_p_m is not None:
-        tp = ev.truth_p_m
-        if ev.truth_source.startswith('gnss') and run.est_odom_p_m is not None:
-            # Same origin alignment as the metrics.
-            k = int(np.searchsorted(ev.truth_stamp_ns, run.est_odom_stamp_ns[0]))
-            k = min(k, len(tp) - 1)
-            tp = tp - tp[k] + run.est_odom_p_m[0]
-        ax.plot(tp[:, 0], tp[:, 1], 'k.-', ms=2, lw=0.8, label=f'truth ({ev.truth_source})')
-    if run.est_odom_p_m is not None:
-        ax.plot(run.est_odom_p_m[:, 0], run.est_odom_p_m[:, 1], 'r-', lw=1.2, label='estimate')
-        ax.plot(*run.est_odom_p_m[0, :2], 'go', label='start')
-    ax.set_xlabel('east [m]')
-    ax.set_ylabel('north [m]')
-    ax.axis('equal')
-    ax.grid(True)
-    ax.legend()
-    ax.set_title('Trajectory (odom frame, ENU)')
-    return fig
-
-
-def _slip_vs_truth_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
-    """Slip ratio and speeds over time, estimate against truth."""
-    t0 = run.est_slip_stamp_ns[0] if len(run.est_slip_stamp_ns) else 0
-    fig, axs = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
-    te = (run.est_slip_stamp_ns - t0) * 1e-9
-    if ev.gnss_truth is not None:
-        tt, st = (ev.gnss_truth.stamp_ns - t0) * 1e-9, ev.gnss_truth.s
-        vt, vlab = ev.gnss_truth.v_forward_mps, 'GNSS v_xTR'
-    elif run.truth_slip_stamp_ns is not None:
-        tt, st = (run.truth_slip_stamp_ns - t0) * 1e-9, run.truth_slip
-        vt = run.truth_odom_v_mps[:, 0] if run.truth_odom_v_mps is not None else None
-        vlab = 'truth v_x'
-    else:
-        tt = st = vt = None
-    if tt is not None:
-        axs[0].plot(tt, st, 'k-', lw=0.8, label='truth')
-    axs[0].plot(te, run.est_slip, 'r.', ms=2, label='estimate')
-    for b in (0.2, 0.4, 0.7):
-        for sgn in (1, -1):
-            axs[0].axhline(sgn * b, color='0.7', lw=0.5)
-    axs[0].set_ylabel('slip ratio')
-    axs[0].set_ylim(-1.05, 1.05)
-    axs[0].legend()
-    axs[0].grid(True)
-    axs[1].plot(te, run.est_body_speed_mps, 'r-', lw=0.8, label='estimated body speed')
-    axs[1].plot(te, run.est_wheel_speed_mps, 'b-', lw=0.6, label='rim speed r*w')
-    if vt is not None:
-        tv = tt if ev.gnss_truth is not None else (run.truth_odom_stamp_ns - t0) * 1e-9
-        axs[1].plot(tv, vt, 'k-', lw=0.8, label=vlab)
-    axs[1].set_xlabel('time [s]')
-    axs[1].set_ylabel('speed [m/s]')
-    axs[1].legend()
-    axs[1].grid(True)
-    return fig
-
-
-def _velocity_error_hist_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
-    """Histogram of the forward-speed error."""
-    fig, ax = plt.subplots(figsize=(6, 4))
-    if ev.speed is not None and ev.speed.n:
-        ax.hist(ev.speed.errors, bins=50, color='tab:blue')
-        ax.set_title(f'forward-speed error: RMSE {ev.speed.rmse:.3f} m/s (n={ev.speed.n})')
-    ax.set_xlabel('v_est - v_truth [m/s]')
-    return fig
-
-
-def _confusion_matrix_figure(run: RunData, ev: RunEvaluation, plt: Any) -> Any:
-    """The slip confusion matrix, % of each truth class."""
-    from slip_estimator.core.types import SLIP_CLASS_NAMES
-
-    fig, ax = plt.subplots(figsize=(6, 5))
-    if ev.slip is not None:
-        pct = np.nan_to_num(ev.slip.percent)
-        ax.imshow(pct, cmap='Blues', vmin=0, vmax=100)
-        for e in range(pct.shape[0]):
-            for t in range(pct.shape[1]):
-                ax.text(t, e, f'{pct[e, t]:.1f}%\n({ev.slip.counts[e, t]})', ha='center',
-                        va='center', fontsize=7, color='k' if pct[e, t] < 60 else 'w')
-        ax.set_xticks(range(5), SLIP_CLASS_NAMES)
-        ax.set_yticks(range(5), SLIP_CLASS_NAMES)
-        ax.set_xlabel('truth class')
-        ax.set_ylabel('estimated class')
-        ax.set_title(f'balanced accuracy {ev.slip.balanced_accuracy:.3f}, '
-                     f'coverage {ev.slip.coverage:.3f}')
-    return fig
-
-
-# --------------------------------------------------------------------------------------------
-# CLI
-# --------------------------------------------------------------------------------------------
 def _fmt(x: float | None, unit: str = '', digits: int = 3) -> str:
     return 'n/a' if x is None or not math.isfinite(x) else f'{x:.{digits}f}{unit}'
 
@@ -372,6 +260,8 @@ def evaluate_main(argv: list[str] | None = None) -> int:
     (report_dir / 'summary.txt').write_text(summary_text(ev) + '\n')
     if not args.no_plots:
         try:
+            from slip_estimator.report_figures import write_figures
+
             files = write_figures(run, ev, report_dir)
         except ModuleNotFoundError as exc:
             if exc.name != 'matplotlib':
@@ -380,51 +270,4 @@ def evaluate_main(argv: list[str] | None = None) -> int:
                   '"slip_estimator[plots]")', file=sys.stderr)
             return 0
         print(f'report: {report_dir} ({", ".join(f.name for f in files)})')
-    return 0
-
-
-def import_main(argv: list[str] | None = None) -> int:
-    """Run ``slip-estimator import-pathfinder FILE.mat --output BAG [--params-out FILE]``."""
-    ap = argparse.ArgumentParser(prog='slip-estimator import-pathfinder',
-                                 description='Convert a WVU Pathfinder .mat log to an MCAP bag '
-                                             'and a params file; prints what was verified.')
-    ap.add_argument('mat', help='Pathfinder .mat file (MATLAB v7.3)')
-    ap.add_argument('--output', required=True, help='output bag directory (must not exist)')
-    ap.add_argument('--params-out', help='write a ROS 2 params file for this log')
-    ap.add_argument('--heading', type=float, help='initial heading override, deg cw from north '
-                                                  '(default: estimated from GNSS)')
-    ap.add_argument('--measured-noise', action='store_true',
-                    help='IMU noise densities measured at rest instead of the datasheet')
-    ap.add_argument('--measured-lag', action='store_true',
-                    help='wheel_latency_s = the wheel-stamp lag measured on the log (default 0)')
-    args = ap.parse_args(argv)
-
-    from slip_estimator import pathfinder as pf
-
-    if Path(args.output).exists():
-        print(f'slip-estimator import-pathfinder: {args.output} exists', file=sys.stderr)
-        return 2
-    if not Path(args.mat).is_file():
-        print(f'slip-estimator import-pathfinder: {args.mat}: no such file', file=sys.stderr)
-        return 2
-    try:
-        log, facts, params = pf.import_pathfinder(
-            args.mat, args.output, args.params_out, measured_noise=args.measured_noise,
-            measured_lag=args.measured_lag, heading_deg=args.heading, progress=True)
-    except ImportError:
-        print('slip-estimator import-pathfinder: needs h5py (pip install '
-              '"slip_estimator[pathfinder]" or pip install h5py)', file=sys.stderr)
-        return 2
-    except (OSError, KeyError, ValueError) as exc:
-        print(f'slip-estimator import-pathfinder: {args.mat}: not a Pathfinder .mat log '
-              f'(MATLAB v7.3 / HDF5 with tTimu, Ax.., llhGPS): {_first_line(exc)}',
-              file=sys.stderr)
-        return 2
-    print(pf.format_facts(log, facts))
-    print(f'wrote {args.output}')
-    if args.params_out:
-        print(f'params -> {args.params_out} (initial heading {params.initial_heading_deg:.2f} '
-              'deg)')
-        notes = pf.params_notes(facts, args.measured_noise, args.measured_lag)
-        print('\n'.join('  ' + n for n in notes))
     return 0

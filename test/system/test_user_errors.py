@@ -12,7 +12,8 @@ from helpers import one_line_exit_2, synthetic_messages, write_synthetic_bag
 
 from slip_estimator.evaluation import RunData, evaluate_run
 from slip_estimator.progress import Progress
-from slip_estimator.report import evaluate_main, import_main, summary_text
+from slip_estimator.pathfinder.cli import import_main
+from slip_estimator.report import evaluate_main, summary_text
 
 
 S_NS = 1_000_000_000
