@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-CHANNELS = ('zupt', 'zaru', 'nhc_lateral', 'nhc_vertical', 'wheel')
+CHANNELS = ('zupt', 'zaru', 'nhc_lateral', 'nhc_vertical', 'wheel', 'wheel_yaw')
 
 
 class ResidualMonitor:

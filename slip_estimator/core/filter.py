@@ -80,7 +80,7 @@ class ErrorStateFilter:
         self.P = np.zeros((N_ERR, N_ERR))
         self.g_mps2 = 0.0
         self.nis_mean = {'zupt': float('nan'), 'zaru': float('nan'), 'nhc': float('nan'),
-                         'wheel': float('nan')}
+                         'wheel': float('nan'), 'wheel_yaw': float('nan')}
         self.last_records: list[kalman.UpdateRecord] = []
         self.clear_accumulators()
         # Gyro rate summed since the last update epoch (the pseudo-measurements' mean rate).

@@ -26,6 +26,8 @@ from slip_estimator.core.measurements import (NonHolonomic, PseudoMeasurements,
                                               ZeroAngularRate, ZeroVelocity)
 from slip_estimator.core.params import Params, with_message_noise
 from slip_estimator.core.planet import Planet
+from slip_estimator.core.types import WheelSample
+from slip_estimator.core.yaw_aid import WheelYawAid
 
 _NS = 1_000_000_000
 
@@ -46,6 +48,7 @@ class Updater:
             ZeroAngularRate(planet, p.zaru_rate_std_rps, p.gyro_noise_density_rps_rthz),
             NonHolonomic(planet, l_bw_b, p.nhc_lateral_std_mps, p.nhc_vertical_std_mps))
         self.turn = TurnDetector(p.turn_rate_threshold_rps)
+        self.yaw_aid = WheelYawAid(p, planet)  # survives filter resets, as the track fit
         self._period_ns = int(_NS / p.update_rate_hz)
         self._counters, self._monitor = counters, monitor
         self.reset()
@@ -88,6 +91,21 @@ class Updater:
             self.use_imu_noise((rest[0] ** 2, rest[1] ** 2), flt, stationary, imu_rate,
                                raise_only=True)
         return out
+
+    def wheel_yaw_rate(self, flt: ErrorStateFilter, wheel: WheelSample, yaw_rate_b_rps: float,
+                       stationary: StationaryDetector, imu_rate: ImuRate) -> Correction | None:
+        """The wheel yaw-rate aid at one wheel sample (``yaw_rate_b_rps``: the gyro z rate
+        less its bias at its instant, FRD), while moving (at rest ZARU does it); the gyro
+        sample's variance is the IMU window's (noise and vibration), at least the white noise's.
+        The correction made (None: not applied)."""
+        gyro_var_rps2 = self.params.gyro_noise_density_rps_rthz ** 2 / imu_rate.dt_s
+        if stationary.window.n >= 2:
+            gyro_var_rps2 = max(gyro_var_rps2, float(stationary.window.variance()[5]))
+        c = self.yaw_aid.constraint(wheel, yaw_rate_b_rps, flt.state, gyro_var_rps2,
+                                    moving=not self.is_stationary)
+        if c is None:
+            return None
+        return self.update(flt, c.name, c.innovation, c.H, c.R)
 
     def use_imu_noise(self, noise_var: tuple[float, float] | None, flt: ErrorStateFilter,
                       stationary: StationaryDetector, imu_rate: ImuRate,

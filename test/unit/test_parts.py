@@ -354,3 +354,32 @@ def test_relevel_after_a_recovery_takes_the_tilt_from_the_specific_force():
     assert np.all(np.diag(P_new)[POS] >= np.diag(P)[POS])
     assert np.allclose(P_new, P_new.T, rtol=0, atol=1e-18)
     assert np.linalg.eigvalsh(P_new).min() > -1e-12  # PSD to round-off (max variance 1)
+
+
+def test_wheel_yaw_aid_is_tight_driving_straight_loose_in_turns_and_rate_independent():
+    """The aid's R: a differential of ~0 constrains the gyro z bias tightly whatever the
+    effective track; a turn only loosely (R grows with the differential x the track's
+    uncertainty); the differential-slip share carries the same information per second at any
+    wheel rate (R x rate constant); nothing at rest, without sides or before an interval."""
+    from slip_estimator.core.yaw_aid import WheelYawAid
+
+    p = Params(track_width=0.5)
+    aid = WheelYawAid(p, EARTH)
+    st = NavState(np.eye(3), np.zeros(3), np.array([0.7, 0.0, 300.0]), np.zeros(3), np.zeros(3))
+    straight = aid.variance_rps2(0.0, 0.5, 0.0, 0.1)
+    turn = aid.variance_rps2(-0.4, 0.5, 0.0, 0.1)
+    assert turn > 10.0 * straight
+    slip_only = 2.0 * p.wheel_yaw_rate_std_rps ** 2 * p.wheel_yaw_rate_correlation_s
+    enc = 2.0 * p.wheel_speed_std_mps ** 2 / 0.5 ** 2
+    for rate_hz in (5.0, 10.0, 100.0):
+        assert (aid.variance_rps2(0.0, 0.5, 0.0, 1.0 / rate_hz) - enc) / rate_hz == \
+            pytest.approx(slip_only)
+    w = WheelSample(0, 0.8, 0.8, 0.8)
+    assert aid.constraint(w, 0.0, st, 1e-4, moving=True) is None  # no interval yet
+    w = WheelSample(100_000_000, 0.8, 0.7, 0.9)  # right faster: a left turn, FRD z < 0
+    c = aid.constraint(w, 0.0, st, 1e-4, moving=True)
+    assert c.name == 'wheel_yaw' and c.innovation[0] == pytest.approx(
+        -0.2 / 0.5 - EARTH.omega_ie_rps * math.sin(0.7), rel=1e-6)
+    assert aid.constraint(WheelSample(200_000_000, 0.8, 0.8, 0.8), 0.0, st, 1e-4,
+                          moving=False) is None
+    assert aid.constraint(WheelSample(300_000_000, 0.8), 0.0, st, 1e-4, moving=True) is None
