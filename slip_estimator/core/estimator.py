@@ -220,16 +220,14 @@ class SlipEstimator:
         return out
 
     def _evaluate_wheel(self, wheel: WheelSample) -> SlipEstimate | None:
-        """1. the body motion ``wheel_latency_s`` before its stamp, 2. the track width and the
-        yaw-rate aid, 3. the slip (unknown while recovering: the rim re-anchors the speed),
-        4. the wheel aid."""
+        """1. the body motion ``wheel_latency_s`` before its stamp, 2. the track width and yaw-rate
+        aid, 3. the slip (unknown while recovering: the rim re-anchors), 4. the wheel aid."""
         at = self.history.at(wheel.stamp_ns - self._wheel_latency_ns)
         if at is None:
             self.counters['wheel_late'] += 1
             return None
-        correction = self.updater.wheel_yaw_rate(self.filter, wheel, at.yaw_rate_b_rps,
-                                                 self.stationary, self.imu_rate)
-        if correction is not None:
+        for correction in self.updater.wheel_yaw_rate(self.filter, wheel, at.yaw_rate_b_rps,
+                                                      self.stationary, self.imu_rate):
             self.history.apply(correction, aid=False)
         turning = self.updater.is_turning
         if self.supervisor.recovering(wheel.stamp_ns):

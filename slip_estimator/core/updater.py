@@ -93,19 +93,18 @@ class Updater:
         return out
 
     def wheel_yaw_rate(self, flt: ErrorStateFilter, wheel: WheelSample, yaw_rate_b_rps: float,
-                       stationary: StationaryDetector, imu_rate: ImuRate) -> Correction | None:
+                       stationary: StationaryDetector, imu_rate: ImuRate) -> list[Correction]:
         """The wheel yaw-rate aid at one wheel sample (``yaw_rate_b_rps``: the gyro z rate
         less its bias at its instant, FRD), while moving (at rest ZARU does it); the gyro
         sample's variance is the IMU window's (noise and vibration), at least the white noise's.
-        The correction made (None: not applied)."""
+        The correction made (none when not applied)."""
         gyro_var_rps2 = self.params.gyro_noise_density_rps_rthz ** 2 / imu_rate.dt_s
         if stationary.window.n >= 2:
             gyro_var_rps2 = max(gyro_var_rps2, float(stationary.window.variance()[5]))
         c = self.yaw_aid.constraint(wheel, yaw_rate_b_rps, flt.state, gyro_var_rps2,
                                     moving=not self.is_stationary)
-        if c is None:
-            return None
-        return self.update(flt, c.name, c.innovation, c.H, c.R)
+        correction = None if c is None else self.update(flt, c.name, c.innovation, c.H, c.R)
+        return [] if correction is None else [correction]
 
     def use_imu_noise(self, noise_var: tuple[float, float] | None, flt: ErrorStateFilter,
                       stationary: StationaryDetector, imu_rate: ImuRate,

@@ -28,9 +28,13 @@ interval ``dt`` gets ``2 v tau / dt``: ``R = 2 sigma_w^2 / B_eff^2 + var_gyro + 
 relative_var + sigma^2) 2 tau / dt``. The bias is never believed better than the ground's
 errors average out, whatever the wheel rate.
 
-A yaw rate beyond that (a robot sliding down a slope) is met by the filter's soft chi-square
-gate (the update is applied with R inflated onto the gate) and shows in the residual monitor's
-``wheel_yaw`` channel. Only numpy and the standard library are used.
+A ground that yaws the robot more than ``sigma`` (one track in sand for tens of seconds) shows
+as a persistent innovation: its running mean over ``_RESIDUAL_MEMORY_S``
+(:attr:`WheelYawAid.unexplained_rps`) replaces ``sigma`` when larger (covariance matching), so
+the aid lets go of the bias while the wheels and the gyro disagree and takes hold again when
+they agree; a single wild sample meets the filter's soft chi-square gate (R inflated onto the
+gate). Both show in the residual monitor's ``wheel_yaw`` channel. Measured in
+``test/integration/test_yaw_aid.py``. Only numpy and the standard library are used.
 """
 from __future__ import annotations
 
@@ -42,6 +46,9 @@ from slip_estimator.core.track_width import TrackWidthEstimator
 from slip_estimator.core.types import WheelSample
 
 _NS = 1_000_000_000
+_RESIDUAL_MEMORY_S = 3.0
+"""The yaw rate the ground adds now is measured as the innovation's running mean over this
+long (the white gyro and encoder noise of 30 samples at 10 Hz averages to ~0.005 rad/s)."""
 _MAX_INTERVAL_S = 1.0
 """A longer wheel interval (a dropout) counts as this long: the differential-slip share of R
 never falls below what one second of it leaves."""
@@ -58,13 +65,15 @@ class WheelYawAid:
         self._slip_var_rps2 = p.wheel_yaw_rate_std_rps ** 2
         self._correlation_s = p.wheel_yaw_rate_correlation_s
         self._last_ns: int | None = None
+        self.unexplained_rps = 0.0  # running mean of the innovation (see variance_rps2)
 
     def variance_rps2(self, z_rps: float, width_m: float, gyro_var_rps2: float,
                       interval_s: float) -> float:
         """``R`` of one wheel sample (see the module docstring), rad^2/s^2."""
         ground_s = self._correlation_s / interval_s  # samples per correlation time
+        slip_var = max(self._slip_var_rps2, self.unexplained_rps ** 2)
         return (self._encoder_var_mps2 / width_m ** 2 + gyro_var_rps2
-                + (z_rps ** 2 * self.track.relative_var + self._slip_var_rps2) * 2.0 * ground_s)
+                + (z_rps ** 2 * self.track.relative_var + slip_var) * 2.0 * ground_s)
 
     def constraint(self, wheel: WheelSample, yaw_rate_b_rps: float, state: NavState,
                    gyro_var_rps2: float, moving: bool) -> Constraint | None:
@@ -82,5 +91,7 @@ class WheelYawAid:
         z_rps = -diff_mps / width_m
         # The gyro rate with its bias: the model's h(x) takes the bias from the state.
         innovation = self.model.innovation(state, yaw_rate_b_rps + float(state.b_g[2]), z_rps)
+        w = min(1.0, interval_s / _RESIDUAL_MEMORY_S)
+        self.unexplained_rps += w * (float(innovation[0]) - self.unexplained_rps)
         R = self.model.covariance(self.variance_rps2(z_rps, width_m, gyro_var_rps2, interval_s))
         return Constraint(self.model.name, innovation, self.model.jacobian(state), R)

@@ -383,3 +383,21 @@ def test_wheel_yaw_aid_is_tight_driving_straight_loose_in_turns_and_rate_indepen
     assert aid.constraint(WheelSample(200_000_000, 0.8, 0.8, 0.8), 0.0, st, 1e-4,
                           moving=False) is None
     assert aid.constraint(WheelSample(300_000_000, 0.8), 0.0, st, 1e-4, moving=True) is None
+
+
+def test_wheel_yaw_aid_lets_go_while_wheels_and_gyro_disagree_persistently():
+    """A ground that yaws the robot beyond the declared unexplained yaw rate (wheels straight,
+    gyro 0.02 rad/s) raises R through the running innovation mean within seconds; when they
+    agree again it falls back to the declared one."""
+    from slip_estimator.core.yaw_aid import WheelYawAid
+
+    aid = WheelYawAid(Params(track_width=0.5), EARTH)
+    st = NavState(np.eye(3), np.zeros(3), np.array([0.0, 0.0, 300.0]), np.zeros(3), np.zeros(3))
+    R = []
+    for k in range(101):
+        yaw = 0.02 if 10 <= k < 60 else 0.0
+        c = aid.constraint(WheelSample(k * 100_000_000, 0.8, 0.8, 0.8), yaw, st, 1e-4, True)
+        if c is not None:
+            R.append(c.R[0, 0])
+    assert R[55] > 3.0 * R[5]  # after 4.5 s of disagreement (the ground share 10x)
+    assert R[-1] == pytest.approx(R[5], rel=0.2)  # 4 s after they agree again
