@@ -118,6 +118,51 @@ def test_update_beyond_the_gate_is_applied_with_R_inflated_onto_the_gate():
     assert np.array_equal(flt.state.v_eb_n, before)
 
 
+def test_body_velocity_updates_leave_heading_and_gyro_z_bias_to_the_gyro_and_yaw_aid():
+    """NHC, the forward-speed aid and its anchors (body-frame velocity) do not correct the
+    heading or the gyro z bias even where P correlates them with the velocity (consider
+    states: zero gain rows, Joseph form: P stays symmetric and their variances do not shrink);
+    the wheel yaw-rate aid does correct the z bias; the kalman update itself is the ordinary
+    one without ``consider``."""
+    from slip_estimator.core.filter import BODY_VELOCITY_CONSIDER
+    from slip_estimator.core.kalman import update
+    from slip_estimator.core.measurements import NonHolonomic, WheelYawRate
+
+    rng = np.random.default_rng(7)
+    A = rng.standard_normal((N_ERR, N_ERR)) * np.sqrt(np.diag(P0))[:, None]
+    P = A @ A.T + np.diag(P0)  # every state correlated with every other
+
+    def fresh():
+        flt = started_filter(v_eb_n=(0.8, 0.1, 0.0))
+        flt.P = P.copy()
+        return flt
+
+    nhc = NonHolonomic(EARTH, np.array([-0.1, 0.0, 0.2]))
+    H = nhc.jacobian(fresh().state, (1,))
+    dx_plain, P_plain, _ = update(P, np.array([0.05]), H, np.array([[1e-4]]))
+    assert P_plain[2, 2] < P[2, 2] and abs(dx_plain[2]) > 1e-3  # what it would do
+    for name in ('nhc', 'wheel', None):
+        flt = fresh()
+        C0, b0 = flt.state.C_b_n.copy(), flt.state.b_g.copy()
+        H = nhc.jacobian(flt.state, (1,))
+        if name is None:
+            flt.anchor(np.array([0.05]), H, np.array([[1e-4]]))
+        else:
+            flt.update(name, np.array([0.05]), H, np.array([[1e-4]]))
+        heading = math.atan2(flt.state.C_b_n[1, 0], flt.state.C_b_n[0, 0])
+        # (roll and pitch corrections turn the heading at second order only)
+        assert abs(heading - math.atan2(C0[1, 0], C0[0, 0])) < 1e-3 * abs(dx_plain[2])
+        assert flt.state.b_g[2] == b0[2] and flt.state.b_g[0] != b0[0]
+        assert np.allclose(flt.P, flt.P.T, atol=0)
+        for i in BODY_VELOCITY_CONSIDER:
+            assert flt.P[i, i] == pytest.approx(P[i, i], rel=1e-9)
+    flt = fresh()
+    m = WheelYawRate(EARTH)
+    flt.update('wheel_yaw', m.innovation(flt.state, 0.01, 0.0), m.jacobian(flt.state),
+               np.array([[1e-4]]))
+    assert flt.state.b_g[2] != 0.0 and flt.P[14, 14] < P[14, 14]
+
+
 def test_correction_reports_the_forward_speed_and_along_track_gravity_change():
     flt = started_filter(v_eb_n=(1.0, 0.0, 0.0))
     dx = np.zeros(N_ERR)
