@@ -21,7 +21,7 @@
   0.07 rad/s. Heading and gyro z bias are therefore consider states of these updates
   (:data:`BODY_VELOCITY_CONSIDER`): they come from the gyro, ZARU at rest and the wheel
   yaw-rate aid, and the velocity follows the body's heading (the constraint turns v, not the
-  body).
+  body). With ``wheel_aid: off`` (the paper's method) they correct every state, as there.
 """
 from __future__ import annotations
 
@@ -88,6 +88,7 @@ class ErrorStateFilter:
     def __init__(self, params: Params, planet: Planet) -> None:
         self.planet = planet
         self._decimation = params.covariance_decimation
+        self._consider = None if params.wheel_aid == 'off' else BODY_VELOCITY_CONSIDER
         self._vibration_fraction = params.vibration_noise_fraction
         self.use_noise(params)
         self._gate = {k: kalman.chi2_threshold(k, params.innovation_gate_probability)
@@ -198,7 +199,7 @@ class ErrorStateFilter:
         the gate, so it can only pull the state by a bounded, statistically plausible amount
         (robust Kalman filtering by measurement-noise scaling)."""
         gate = self._gate[len(innovation)]
-        consider = BODY_VELOCITY_CONSIDER if name in _BODY_VELOCITY_MODELS else None
+        consider = self._consider if name in _BODY_VELOCITY_MODELS else None
         dx, P, rec = kalman.update(self.P, innovation, H, R, gate, name, consider)
         gated = not rec.accepted and math.isfinite(rec.nis)
         if gated:
@@ -215,7 +216,7 @@ class ErrorStateFilter:
     def anchor(self, innovation: np.ndarray, H: np.ndarray, R: np.ndarray) -> Correction:
         """An ungated forward-speed update: a known jump of the INS error (not a constraint to
         be gated); heading and gyro z bias are consider states, as for the aid itself."""
-        dx, self.P, _ = kalman.update(self.P, innovation, H, R, consider=BODY_VELOCITY_CONSIDER)
+        dx, self.P, _ = kalman.update(self.P, innovation, H, R, consider=self._consider)
         return self.correct(dx)
 
     def variance(self, H: np.ndarray) -> float:

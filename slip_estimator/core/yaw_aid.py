@@ -34,7 +34,8 @@ as a persistent innovation: its running mean over ``_RESIDUAL_MEMORY_S``
 the aid lets go of the bias while the wheels and the gyro disagree and takes hold again when
 they agree; a single wild sample meets the filter's soft chi-square gate (R inflated onto the
 gate). Both show in the residual monitor's ``wheel_yaw`` channel. Measured in
-``test/integration/test_yaw_aid.py``. Only numpy and the standard library are used.
+``test/integration/test_yaw_aid.py``. With ``wheel_aid: off`` (the paper's method) the aid is
+not applied (the track width is still fitted). Only numpy and the standard library are used.
 """
 from __future__ import annotations
 
@@ -65,6 +66,7 @@ class WheelYawAid:
         self._slip_var_rps2 = p.wheel_yaw_rate_std_rps ** 2
         self._correlation_s = p.wheel_yaw_rate_correlation_s
         self._last_ns: int | None = None
+        self.enabled = p.wheel_aid != 'off'
         self.unexplained_rps = 0.0  # running mean of the innovation (see variance_rps2)
 
     def variance_rps2(self, z_rps: float, width_m: float, gyro_var_rps2: float,
@@ -79,12 +81,14 @@ class WheelYawAid:
                    gyro_var_rps2: float, moving: bool) -> Constraint | None:
         """Feed the track-width fit with one wheel sample and the gyro z rate less its bias
         at its instant (``yaw_rate_b_rps``, FRD); the yaw-rate constraint to apply (None:
-        the sides are unknown, the robot is not ``moving`` (ZARU's case), or no interval yet).
+        the aid is off, the sides are unknown, the robot is not ``moving`` (ZARU's case), or no
+        interval yet).
         ``gyro_var_rps2``: the variance of one gyro sample now."""
         diff_mps = wheel.rim_difference_mps
         self.track.add(-yaw_rate_b_rps, diff_mps)
         last_ns, self._last_ns = self._last_ns, wheel.stamp_ns
-        if diff_mps is None or not moving or last_ns is None or wheel.stamp_ns <= last_ns:
+        if (not self.enabled or diff_mps is None or not moving or last_ns is None
+                or wheel.stamp_ns <= last_ns):
             return None
         interval_s = min((wheel.stamp_ns - last_ns) / _NS, _MAX_INTERVAL_S)
         width_m = self.track.width_m

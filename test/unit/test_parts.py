@@ -123,7 +123,7 @@ def test_body_velocity_updates_leave_heading_and_gyro_z_bias_to_the_gyro_and_yaw
     heading or the gyro z bias even where P correlates them with the velocity (consider
     states: zero gain rows, Joseph form: P stays symmetric and their variances do not shrink);
     the wheel yaw-rate aid does correct the z bias; the kalman update itself is the ordinary
-    one without ``consider``."""
+    one without ``consider``, and so is the paper's method (``wheel_aid: off``)."""
     from slip_estimator.core.filter import BODY_VELOCITY_CONSIDER
     from slip_estimator.core.kalman import update
     from slip_estimator.core.measurements import NonHolonomic, WheelYawRate
@@ -161,6 +161,10 @@ def test_body_velocity_updates_leave_heading_and_gyro_z_bias_to_the_gyro_and_yaw
     flt.update('wheel_yaw', m.innovation(flt.state, 0.01, 0.0), m.jacobian(flt.state),
                np.array([[1e-4]]))
     assert flt.state.b_g[2] != 0.0 and flt.P[14, 14] < P[14, 14]
+    paper = started_filter(Params(wheel_aid='off'), v_eb_n=(0.8, 0.1, 0.0))  # corrects all
+    paper.P = P.copy()
+    paper.update('nhc', np.array([0.05]), H, np.array([[1e-4]]))
+    assert paper.P[2, 2] < P[2, 2] and paper.state.b_g[2] != 0.0
 
 
 def test_correction_reports_the_forward_speed_and_along_track_gravity_change():
@@ -428,6 +432,9 @@ def test_wheel_yaw_aid_is_tight_driving_straight_loose_in_turns_and_rate_indepen
     assert aid.constraint(WheelSample(200_000_000, 0.8, 0.8, 0.8), 0.0, st, 1e-4,
                           moving=False) is None
     assert aid.constraint(WheelSample(300_000_000, 0.8), 0.0, st, 1e-4, moving=True) is None
+    paper = WheelYawAid(Params(track_width=0.5, wheel_aid='off'), EARTH)  # the paper's method
+    assert [paper.constraint(WheelSample(k * 100_000_000, 0.8, 0.7, 0.9), 0.0, st, 1e-4, True)
+            for k in range(3)] == [None] * 3
 
 
 def test_wheel_yaw_aid_lets_go_while_wheels_and_gyro_disagree_persistently():
