@@ -7,6 +7,9 @@ IMU window still and wheels stopped; turning: yaw rate above its threshold), the
 after the other through the filter's gated update. Each applied update returns the filter's
 :class:`~slip_estimator.core.history.Correction` to the caller, who keeps the history.
 
+At each wheel sample while moving, the wheel yaw-rate aid (:mod:`slip_estimator.core.yaw_aid`)
+is applied through the same gated update (:meth:`Updater.wheel_yaw_rate`).
+
 The IMU's noise model: the noise densities of :attr:`Updater.params` (process noise, ZARU)
 come from the IMU itself when the parameters leave them at their defaults
 (:meth:`Updater.use_imu_noise`): from the covariances its messages declare, else from the
@@ -103,6 +106,9 @@ class Updater:
             gyro_var_rps2 = max(gyro_var_rps2, float(stationary.window.variance()[5]))
         c = self.yaw_aid.constraint(wheel, yaw_rate_b_rps, flt.state, gyro_var_rps2,
                                     moving=not self.is_stationary)
+        if c is not None:
+            self._monitor.add_yaw_disagreement(self.yaw_aid.unexplained_rps,
+                                               self.params.wheel_yaw_rate_std_rps)
         correction = None if c is None else self.update(flt, c.name, c.innovation, c.H, c.R)
         return [] if correction is None else [correction]
 

@@ -92,3 +92,24 @@ def test_differential_slip_does_not_fool_the_heading_worse_than_the_gyro():
     assert abs(err) < 0.3 * abs(err_off)
     assert abs(err) < math.radians(20.0)
     assert abs(err) < 3.0 * math.sqrt(est.filter.P[2, 2])
+
+
+def test_differential_slip_is_named_while_it_lasts():
+    """During the 20 s of differential slip /diagnostics names it (the running innovation
+    mean beyond 3 declared sigma), not before it and not 30 s after it."""
+    from slip_estimator.core.estimator import SlipEstimator
+    from slip_estimator.streams import feed, records
+
+    r = simulate(_drive(differential_yaw_rps=0.02))
+    p = sim_params(r)
+    est = SlipEstimator(p)
+    t0 = r.stamps_ns(r.imu_t_s)[0]
+    named = {}
+
+    def look(s):
+        t_s = (s.stamp_ns - t0) * 1e-9
+        if est.aligned and round(t_s, 3) in (35.0, 55.0, 58.0, 90.0):
+            named[round(t_s)] = any('one side slipping more' in x for x in est.monitor.suspects())
+
+    feed(est, records(from_simulation(r, p)), look)
+    assert named == {35: False, 55: True, 58: True, 90: False}
