@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-CHANNELS = ('zupt', 'zaru', 'nhc_lateral', 'nhc_vertical', 'wheel')
+CHANNELS = ('zupt', 'zaru', 'nhc_lateral', 'nhc_vertical', 'wheel', 'wheel_yaw')
 
 
 class ResidualMonitor:
@@ -31,6 +31,8 @@ class ResidualMonitor:
         self.count = dict.fromkeys(CHANNELS, 0)
         self.held_slip_mean = float('nan')
         self.held_slip_count = 0
+        self.unexplained_yaw_rps = float('nan')
+        self._unexplained_yaw_std_rps = float('inf')
 
     def add(self, channel: str, innovation: np.ndarray, S: np.ndarray) -> None:
         """Add the normalised innovation of one update (one component per call or a vector
@@ -61,6 +63,13 @@ class ResidualMonitor:
         self.held_slip_mean = prev + w * (s_hold - prev)
         self.held_slip_count += 1
 
+    def add_yaw_disagreement(self, rate_rps: float, declared_std_rps: float) -> None:
+        """The running mean of the wheel yaw-rate aid's innovation (the body's yaw rate its
+        wheel differential does not show, rad/s, left positive: the FRD innovation wheels minus
+        gyro) and the 1-sigma the parameters declare for it."""
+        self.unexplained_yaw_rps = rate_rps
+        self._unexplained_yaw_std_rps = declared_std_rps
+
     def suspects(self, min_updates: int = 30) -> list[str]:
         """Named likely unmodelled effects, most specific first."""
         out = []
@@ -82,6 +91,12 @@ class ResidualMonitor:
         if n['wheel'] >= min_updates and ms['wheel'] > 4.0:
             out.append('wheel-aid residuals %.0fx expected: slip changing faster than the hold '
                        'model, or wheel timestamps offset from the IMU' % ms['wheel'])
+        if abs(self.unexplained_yaw_rps) > 3.0 * self._unexplained_yaw_std_rps:
+            # Wheels that say straight while the body yaws: one side slips more (softer
+            # ground, a side slope) or the gyro z bias is off (not yet learnt, or changing).
+            out.append('body yaws %+.2f deg/s (left positive) more than its wheel differential '
+                       'says: one side slipping more (soft ground, side slope), or the gyro z '
+                       'bias not yet known' % math.degrees(self.unexplained_yaw_rps))
         if self.held_slip_count >= 2 and abs(self.held_slip_mean) > 0.1:
             # On ordinary ground a constant slip in every driving segment is what a wrong
             # wheel radius looks like: s = 1 - r_eff / r. Loose soil slips a few per cent
@@ -99,4 +114,5 @@ class ResidualMonitor:
             out[f'nis_per_dof_{c}'] = self.mean_square[c]
             out[f'residual_mean_sigma_{c}'] = self.mean[c] if self.count[c] else float('nan')
         out['held_slip_mean'] = self.held_slip_mean
+        out['unexplained_yaw_rate_rps'] = self.unexplained_yaw_rps
         return out

@@ -28,7 +28,6 @@ from slip_estimator.core.slip_model import AidDecision
 from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor
 from slip_estimator.core.timing import WheelTimingMonitor
-from slip_estimator.core.track_width import TrackWidthEstimator
 from slip_estimator.core.types import (Health, ImuSample, OdometryEstimate, SlipEstimate,
                                        WheelSample, wheel_speeds)
 from slip_estimator.core.updater import Updater
@@ -55,7 +54,7 @@ class SlipEstimator:
         self.monitor = ResidualMonitor()
         self.updater = Updater(p, self.planet, self.l_bw_b, self.counters, self.monitor)
         self.timing = WheelTimingMonitor()
-        self.track = TrackWidthEstimator(p.track_width)
+        self.track = self.updater.yaw_aid.track
         self._reset_filter()
 
     def _reset_filter(self) -> None:
@@ -221,13 +220,15 @@ class SlipEstimator:
         return out
 
     def _evaluate_wheel(self, wheel: WheelSample) -> SlipEstimate | None:
-        """1. the body motion ``wheel_latency_s`` before its stamp, 2. the track width, 3. the
-        slip (unknown while recovering: the rim re-anchors the speed), 4. the wheel aid."""
+        """1. the body motion ``wheel_latency_s`` before its stamp, 2. the track width and yaw-rate
+        aid, 3. the slip (unknown while recovering: the rim re-anchors), 4. the wheel aid."""
         at = self.history.at(wheel.stamp_ns - self._wheel_latency_ns)
         if at is None:
             self.counters['wheel_late'] += 1
             return None
-        self.track.add(-at.yaw_rate_b_rps, wheel.rim_difference_mps)
+        for correction in self.updater.wheel_yaw_rate(self.filter, wheel, at.yaw_rate_b_rps,
+                                                      self.stationary, self.imu_rate):
+            self.history.apply(correction, aid=False)
         turning = self.updater.is_turning
         if self.supervisor.recovering(wheel.stamp_ns):
             self._apply_aid(self.wheel_aid.reanchor(wheel.rim_speed_mps, turning), at)

@@ -10,6 +10,18 @@
   forward motion (:class:`~slip_estimator.core.history.Correction`), for whoever keeps a
   record of the past. Every update leaves an :class:`~slip_estimator.core.kalman.UpdateRecord`
   in :attr:`last_records` and moves the running NIS mean of its model.
+* **Heading from the gyro, not from body-frame velocity.** The non-holonomic constraint, the
+  forward-speed aid and its anchors constrain the velocity in the body frame, which a rotation
+  of the whole solution about the vertical leaves unchanged: they hold no heading information,
+  and an EKF linearised at changing estimates gains spurious information along that
+  unobservable direction (Huang, Mourikis & Roumeliotis 2010, observability-constrained EKF),
+  so heading and z bias get pulled and the filter grows over-confident. Their only route to
+  the gyro z bias is the centripetal coupling (yaw rate against lateral acceleration over
+  speed), where a consumer accelerometer's lateral bias of 0.06 m/s^2 at 0.9 m/s reads as
+  0.07 rad/s. Heading and gyro z bias are therefore consider states of these updates
+  (:data:`BODY_VELOCITY_CONSIDER`): they come from the gyro, ZARU at rest and the wheel
+  yaw-rate aid, and the velocity follows the body's heading (the constraint turns v, not the
+  body). With ``wheel_aid: off`` (the paper's method) they correct every state, as there.
 """
 from __future__ import annotations
 
@@ -26,10 +38,14 @@ from slip_estimator.core.history import Correction
 from slip_estimator.core.mechanization import mechanize_step
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import Planet
-from slip_estimator.core.state import N_ERR, NavState, correct
+from slip_estimator.core.state import ATT, BG, N_ERR, NavState, correct
 
 _EYE_15 = np.eye(N_ERR)
 _EYE_15.flags.writeable = False
+BODY_VELOCITY_CONSIDER = [ATT.start + 2, BG.start + 2]
+"""Heading error (down component of psi) and gyro z bias: not corrected by body-frame velocity
+updates (module docstring)."""
+_BODY_VELOCITY_MODELS = frozenset({'nhc', 'wheel'})
 
 
 class UpdateOutcome(NamedTuple):
@@ -72,6 +88,7 @@ class ErrorStateFilter:
     def __init__(self, params: Params, planet: Planet) -> None:
         self.planet = planet
         self._decimation = params.covariance_decimation
+        self._consider = None if params.wheel_aid == 'off' else BODY_VELOCITY_CONSIDER
         self._vibration_fraction = params.vibration_noise_fraction
         self.use_noise(params)
         self._gate = {k: kalman.chi2_threshold(k, params.innovation_gate_probability)
@@ -80,7 +97,7 @@ class ErrorStateFilter:
         self.P = np.zeros((N_ERR, N_ERR))
         self.g_mps2 = 0.0
         self.nis_mean = {'zupt': float('nan'), 'zaru': float('nan'), 'nhc': float('nan'),
-                         'wheel': float('nan')}
+                         'wheel': float('nan'), 'wheel_yaw': float('nan')}
         self.last_records: list[kalman.UpdateRecord] = []
         self.clear_accumulators()
         # Gyro rate summed since the last update epoch (the pseudo-measurements' mean rate).
@@ -182,10 +199,12 @@ class ErrorStateFilter:
         the gate, so it can only pull the state by a bounded, statistically plausible amount
         (robust Kalman filtering by measurement-noise scaling)."""
         gate = self._gate[len(innovation)]
-        dx, P, rec = kalman.update(self.P, innovation, H, R, gate, name)
+        consider = self._consider if name in _BODY_VELOCITY_MODELS else None
+        dx, P, rec = kalman.update(self.P, innovation, H, R, gate, name, consider)
         gated = not rec.accepted and math.isfinite(rec.nis)
         if gated:
-            dx, P, _ = kalman.update(self.P, innovation, H, R * (rec.nis / gate), name=name)
+            dx, P, _ = kalman.update(self.P, innovation, H, R * (rec.nis / gate), name=name,
+                                     consider=consider)
         self.last_records.append(rec)
         prev = self.nis_mean[name]
         self.nis_mean[name] = rec.nis if math.isnan(prev) else 0.98 * prev + 0.02 * rec.nis
@@ -195,8 +214,9 @@ class ErrorStateFilter:
         return UpdateOutcome(rec, gated, self.correct(dx))
 
     def anchor(self, innovation: np.ndarray, H: np.ndarray, R: np.ndarray) -> Correction:
-        """An ungated update: a known jump of the INS error (not a constraint to be gated)."""
-        dx, self.P, _ = kalman.update(self.P, innovation, H, R)
+        """An ungated forward-speed update: a known jump of the INS error (not a constraint to
+        be gated); heading and gyro z bias are consider states, as for the aid itself."""
+        dx, self.P, _ = kalman.update(self.P, innovation, H, R, consider=self._consider)
         return self.correct(dx)
 
     def variance(self, H: np.ndarray) -> float:

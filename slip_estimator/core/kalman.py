@@ -97,10 +97,13 @@ def predict(P: np.ndarray, Phi: np.ndarray, Q: np.ndarray) -> np.ndarray:
 
 
 def update(P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
-           gate: float = float('inf'), name: str = '') -> tuple[np.ndarray, np.ndarray,
-                                                                   UpdateRecord]:
+           gate: float = float('inf'), name: str = '',
+           consider: list[int] | None = None) -> tuple[np.ndarray, np.ndarray, UpdateRecord]:
     """Error-state measurement update.
 
+    ``consider``: error-state indices the update must not correct (Schmidt "consider"
+    states: their gain rows are zero; the Joseph form keeps P right for that gain, so their
+    uncertainty still enters S and the cross-covariances).
     Returns the error-state estimate ``dx`` (zero when gated out), the updated covariance and
     the update record.
     """
@@ -110,6 +113,8 @@ def update(P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
     if not nis <= gate:  # also rejects NaN
         return np.zeros(P.shape[0]), P, UpdateRecord(name, innovation, S, nis, False)
     K = solve(S, PHt.T).T
+    if consider is not None:
+        K[consider, :] = 0.0
     dx = K @ innovation
     IKH = _identity(P.shape[0]) - K @ H
     P_new = symmetrize(IKH @ P @ IKH.T + K @ R @ K.T)

@@ -155,6 +155,37 @@ class ForwardSpeed:
         return np.array([[var_mps2]])
 
 
+class WheelYawRate:
+    """Wheel yaw-rate aid: the body's rate about its z axis w.r.t. the planet is the one the
+    wheel differential gives, ``omega_eb_b[2] = z = -(rim_R - rim_L) / B_eff`` (b is FRD, z
+    down: a left turn, right rim faster, is negative; ``B_eff`` the effective track,
+    :mod:`slip_estimator.core.track_width`). ``h(x) = omega_ib_b[2] - b_g[2] - (C_n_b
+    omega_ie_n)[2]``, the z row of :class:`ZeroAngularRate` (which is this model with z = 0):
+    while the robot drives without stopping it is what observes the gyro z bias. R is the
+    variance the caller states (encoder and gyro noise, the track width's uncertainty and the
+    yaw rate the differential does not explain: :mod:`slip_estimator.core.yaw_aid`).
+    """
+
+    name = 'wheel_yaw'
+
+    def __init__(self, planet: Planet) -> None:
+        self._zaru = ZeroAngularRate(planet)
+
+    def innovation(self, state: NavState, omega_ib_z_rps: float, z_rps: float) -> np.ndarray:
+        """``z - (omega_ib_b[2] - b_g[2] - (C_n_b omega_ie_n)[2])``, rad/s, with the gyro z
+        rate ``omega_ib_z_rps`` (bias included) at the wheel sample's instant."""
+        w_ie_z = float(state.C_b_n[:, 2] @ earth_rate_n(self._zaru.planet, state.llh[0]))
+        return np.array([z_rps - (omega_ib_z_rps - float(state.b_g[2]) - w_ie_z)])
+
+    def jacobian(self, state: NavState) -> np.ndarray:
+        """``H = row_z(C_n_b [omega_ie_n x], 0, 0, 0, -I)``, shape (1, 15)."""
+        return self._zaru.jacobian(state)[2:3]
+
+    def covariance(self, var_rps2: float) -> np.ndarray:
+        """``R = [[var]]``, rad^2/s^2."""
+        return np.array([[var_rps2]])
+
+
 class Constraint(NamedTuple):
     """One pseudo-measurement to apply: model name, ``z - h(x)``, H, R, and the names of its
     rows for the residual monitor (None: the model's name)."""

@@ -128,6 +128,14 @@ class Params:
                                          1e-4, 2.0)
     nhc_vertical_std_mps: float = _filter(0.03, 'm/s', 'non-holonomic vertical velocity '
                                           '1-sigma', 1e-4, 2.0)
+    wheel_yaw_rate_std_rps: float = _filter(0.005, 'rad/s', 'yaw rate of the body the wheel '
+                                            'differential does not show while driving (one '
+                                            'side on softer ground, a side slope), 1-sigma; it '
+                                            'bounds the wheel yaw-rate aid of the gyro z bias',
+                                            1e-4, 10.0)
+    wheel_yaw_rate_correlation_s: float = _filter(1.0, 's', 'how long that yaw rate and a '
+                                                  "turn's scrub persist (a patch of ground "
+                                                  'crossed)', 0.01, 600.0)
     update_rate_hz: float = _filter(10.0, 'Hz', 'rate of pseudo-measurement updates (ZUPT, '
                                     'ZARU, non-holonomic)', 0.5, 1000.0)
     innovation_gate_probability: float = _filter(0.9999, '', 'chi-square gate probability for '

@@ -96,8 +96,8 @@ class Supervisor:
         self.counters: dict[str, int] = dict.fromkeys((
             'imu_samples', 'imu_rejected', 'imu_gaps', 'imu_saturated', 'wheel_samples',
             'wheel_rejected', 'wheel_late', 'wheel_future', 'zupt', 'zaru', 'nhc', 'wheel',
-            'gated', 'resets', 'recoveries', 'divergence_resets', 'covariance_repairs',
-            'slip_estimates', 'slip_unknown'), 0)
+            'wheel_yaw', 'gated', 'resets', 'recoveries', 'divergence_resets',
+            'covariance_repairs', 'slip_estimates', 'slip_unknown'), 0)
         self.events: deque = deque(maxlen=_EVENTS_HELD)
         self.reset()
 

@@ -19,6 +19,9 @@ _MIN_SAMPLES = 20
 _MIN_CORRELATION = 0.8
 _RATIO_BOUNDS = (0.5, 3.0)
 """An estimate outside these multiples of the declared track is a fault, not a robot."""
+_UNFITTED_RELATIVE_STD = 0.5
+"""Before a fit the declared (geometric) track stands: a skid-steer robot's effective one is
+1.5-1.9 times it, so the yaw rate the declared track gives may be off by half of itself."""
 
 
 class TrackWidthEstimator:
@@ -49,9 +52,23 @@ class TrackWidthEstimator:
         return self._sxy / (self._sxx * self._syy) ** 0.5
 
     @property
+    def fitted(self) -> bool:
+        """True once enough turning, correlated with the differential, was seen."""
+        return self.samples >= _MIN_SAMPLES and self.correlation >= _MIN_CORRELATION
+
+    @property
+    def relative_var(self) -> float:
+        """Relative variance of the yaw rate ``(rim_R - rim_L) / width_m`` in a turn: the
+        share of the differential the fit leaves unexplained (1 - correlation^2: encoder and
+        gyro noise, slip changing the scrub) once fitted, else ``_UNFITTED_RELATIVE_STD^2``."""
+        if not self.fitted:
+            return _UNFITTED_RELATIVE_STD ** 2
+        return max(1.0 - self.correlation ** 2, 0.0)
+
+    @property
     def width_m(self) -> float:
         """The effective track width, m (the declared one until enough turning is seen)."""
-        if self.samples < _MIN_SAMPLES or self.correlation < _MIN_CORRELATION:
+        if not self.fitted:
             return self.declared_m
         lo, hi = _RATIO_BOUNDS
         return min(max(self._sxy / self._sxx, lo * self.declared_m), hi * self.declared_m)

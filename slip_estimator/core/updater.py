@@ -7,6 +7,9 @@ IMU window still and wheels stopped; turning: yaw rate above its threshold), the
 after the other through the filter's gated update. Each applied update returns the filter's
 :class:`~slip_estimator.core.history.Correction` to the caller, who keeps the history.
 
+At each wheel sample while moving, the wheel yaw-rate aid (:mod:`slip_estimator.core.yaw_aid`)
+is applied through the same gated update (:meth:`Updater.wheel_yaw_rate`).
+
 The IMU's noise model: the noise densities of :attr:`Updater.params` (process noise, ZARU)
 come from the IMU itself when the parameters leave them at their defaults
 (:meth:`Updater.use_imu_noise`): from the covariances its messages declare, else from the
@@ -26,6 +29,8 @@ from slip_estimator.core.measurements import (NonHolonomic, PseudoMeasurements,
                                               ZeroAngularRate, ZeroVelocity)
 from slip_estimator.core.params import Params, with_message_noise
 from slip_estimator.core.planet import Planet
+from slip_estimator.core.types import WheelSample
+from slip_estimator.core.yaw_aid import WheelYawAid
 
 _NS = 1_000_000_000
 
@@ -46,6 +51,7 @@ class Updater:
             ZeroAngularRate(planet, p.zaru_rate_std_rps, p.gyro_noise_density_rps_rthz),
             NonHolonomic(planet, l_bw_b, p.nhc_lateral_std_mps, p.nhc_vertical_std_mps))
         self.turn = TurnDetector(p.turn_rate_threshold_rps)
+        self.yaw_aid = WheelYawAid(p, planet)  # survives filter resets, as the track fit
         self._period_ns = int(_NS / p.update_rate_hz)
         self._counters, self._monitor = counters, monitor
         self.reset()
@@ -88,6 +94,23 @@ class Updater:
             self.use_imu_noise((rest[0] ** 2, rest[1] ** 2), flt, stationary, imu_rate,
                                raise_only=True)
         return out
+
+    def wheel_yaw_rate(self, flt: ErrorStateFilter, wheel: WheelSample, yaw_rate_b_rps: float,
+                       stationary: StationaryDetector, imu_rate: ImuRate) -> list[Correction]:
+        """The wheel yaw-rate aid at one wheel sample (``yaw_rate_b_rps``: the gyro z rate
+        less its bias at its instant, FRD), while moving (at rest ZARU does it); the gyro
+        sample's variance is the IMU window's (noise and vibration), at least the white noise's.
+        The correction made (none when not applied)."""
+        gyro_var_rps2 = self.params.gyro_noise_density_rps_rthz ** 2 / imu_rate.dt_s
+        if stationary.window.n >= 2:
+            gyro_var_rps2 = max(gyro_var_rps2, float(stationary.window.variance()[5]))
+        c = self.yaw_aid.constraint(wheel, yaw_rate_b_rps, flt.state, gyro_var_rps2,
+                                    moving=not self.is_stationary)
+        if c is not None:
+            self._monitor.add_yaw_disagreement(self.yaw_aid.unexplained_rps,
+                                               self.params.wheel_yaw_rate_std_rps)
+        correction = None if c is None else self.update(flt, c.name, c.innovation, c.H, c.R)
+        return [] if correction is None else [correction]
 
     def use_imu_noise(self, noise_var: tuple[float, float] | None, flt: ErrorStateFilter,
                       stationary: StationaryDetector, imu_rate: ImuRate,

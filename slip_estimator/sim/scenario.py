@@ -60,6 +60,10 @@ class Segment:
     control : 'wheel' or 'body' (see above).
     slip_ramp_s : duration of the slip blend at the segment start, s, in [0.5, 3]: how fast
         the rover enters or leaves a patch of other ground.
+    differential_yaw_rps : part of ``yaw_rate_rps`` the wheel differential does not show,
+        rad/s: one side on softer ground or a side slope makes the body yaw while the wheels
+        turn as for ``yaw_rate_rps - differential_yaw_rps`` (equal to it: the wheels say
+        straight while the body yaws).
     """
 
     duration_s: float
@@ -71,6 +75,7 @@ class Segment:
     label: str = ''
     control: str = 'wheel'
     slip_ramp_s: float = 1.5
+    differential_yaw_rps: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0.0:

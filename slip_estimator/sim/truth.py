@@ -365,8 +365,13 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
     # wheels: side speeds and rim speeds
     K = _slip_gain(s_cmd)
     half_T = 0.5 * cfg.rover.track_width_m * cfg.rover.effective_track_factor
-    v_left = v - omega_eb_b[:, 2] * half_T
-    v_right = v + omega_eb_b[:, 2] * half_T
+    # the yaw rate the wheels turn for: less what differential slip adds to the body's
+    starts = np.cumsum([0.0] + [s.duration_s for s in cfg.segments[:-1]])
+    yaw_wheels = omega_eb_b[:, 2] - _profile(
+        t, starts, [s.differential_yaw_rps for s in cfg.segments], [1.0] * len(cfg.segments),
+        cfg.segments[0].differential_yaw_rps if cfg.start_moving else 0.0)
+    v_left = v - yaw_wheels * half_T
+    v_right = v + yaw_wheels * half_T
     rim_left = v_left * K + spin
     rim_right = v_right * K + spin
     rim = np.column_stack([rim_left if left else rim_right for left in WHEEL_IS_LEFT])

@@ -183,10 +183,12 @@ def test_fifty_hz_robot_slip_is_honest(fifty_hz):
     assert fifty_hz.honest_slip_share() >= 0.85
 
 
-@pytest.mark.xfail(strict=True, reason='consumer IMU, no stop for 236 s: the accelerometer '
-                   'bias is unobservable after the in-motion start; the slip model no longer '
-                   'ratchets into a run-ahead (it held s = -0.82, sigma 0.01: 1 % honest) and '
-                   'its assumed slip carries 0.1 of the rim speed; measured 77 %')
+@pytest.mark.xfail(strict=True, reason='consumer IMU, no stop for 236 s: the slip model '
+                   'misses slip changes that come with a rim-speed change (21-30 s: rim '
+                   '0.62 -> 0.90 m/s and s 0.10 -> 0.41 at an unchanged body speed; held '
+                   's ~ 0); it no longer ratchets into a run-ahead (it held s = -0.82, '
+                   'sigma 0.01: 1 % honest) and its assumed slip carries 0.1 of the rim '
+                   'speed; measured 74 % (77 % before the heading work: slip-model noise)')
 def test_skid_steer_slip_is_honest(skid_steer):
     """The issue's 'honest sigma': known slips within max(3 sigma, 0.1) of the truth."""
     assert skid_steer.honest_slip_share() >= 0.8
@@ -194,30 +196,27 @@ def test_skid_steer_slip_is_honest(skid_steer):
 
 def test_fifty_hz_robot_position(fifty_hz):
     """Stands 1.2 s, then drives two minutes: the end position is better than its own wheel
-    odometry's (measured 0.9 m against 39.6 m published and 15.3 m with the ideal track
-    multiplier)."""
+    odometry's (measured 1.2 m against 39.6 m published and 15.3 m with the ideal track
+    multiplier; 0.9 m before heading and gyro z bias became consider states of the
+    body-frame velocity updates)."""
     assert fifty_hz.estimate_error_m() < 2.0
     assert fifty_hz.estimate_error_m() < fifty_hz.wheel_odometry_error_m(1.5)
 
 
-@pytest.mark.xfail(strict=True, reason='consumer IMU, no stop for 236 s: after the in-motion '
-                   'start the accelerometer and gyro biases are unobservable; measured 22.6 m '
-                   '(126 m before the run-ahead bound; published wheel odometry 116 m, with the '
-                   'ideal track multiplier 4.4 m)')
 def test_skid_steer_final_position_within_6_m(skid_steer):
     """The issue's check: <= 6 m against GNSS and better than the robot's own wheel odometry,
-    published (geometric track) and with a hand-tuned track multiplier (here the ideal 1.7)."""
+    published (geometric track) and with a hand-tuned track multiplier (here the ideal 1.7).
+    Measured 3.0 m against 116 m and 4.4 m: the wheel yaw-rate aid observes the gyro z bias
+    and the body-frame velocity updates no longer pull heading and z bias (heading within
+    10 deg over the log; with the true speed this heading ends 2.8 m off). Before: 9.2 m
+    with the yaw-rate aid alone, 22.6 m without it, 126 m before the run-ahead bound. Not a
+    margin to rely on: seeds 1-4 of this profile end 29-34 m off (22-84 m before), along
+    track (the slip model misses slip changes; with the true speed their heading gives
+    9.5 and 2.8 m on seeds 1 and 2)."""
     error = skid_steer.estimate_error_m()
     assert error <= 6.0
     assert error < skid_steer.wheel_odometry_error_m()
     assert error < skid_steer.wheel_odometry_error_m(1.7)
-
-
-def test_skid_steer_position_beats_its_published_wheel_odometry(skid_steer):
-    """Short of the issue's 6 m, the estimate still beats the robot's own published odometry
-    by a wide margin (measured 22.6 m against 116 m; 126 m before the slip model refused
-    run-aheads beyond twice the wheel speed and on level ground without a baseline)."""
-    assert skid_steer.estimate_error_m() < 0.4 * skid_steer.wheel_odometry_error_m()
 
 
 def test_gravity_free_imu_is_named_and_odometry_comes_from_the_wheels(diff_drive):

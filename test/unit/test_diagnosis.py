@@ -58,3 +58,15 @@ def test_undeclared_wheel_radius_error_is_reported_by_the_estimator():
     assert est.monitor.held_slip_count >= 2
     assert est.monitor.held_slip_mean > 0.1
     assert 'wheel radius' in est.health().message
+
+
+def test_body_yawing_unlike_its_wheels_is_named_beyond_three_declared_sigma():
+    """The wheel yaw-rate aid's running innovation mean beyond 3 sigma of the declared
+    unexplained yaw rate names differential slip (and the sign: left positive)."""
+    m = ResidualMonitor()
+    m.add_yaw_disagreement(0.012, 0.005)
+    assert m.suspects() == []
+    m.add_yaw_disagreement(0.02, 0.005)
+    (text,) = m.suspects()
+    assert 'one side slipping more' in text and '+1.15 deg/s' in text
+    assert m.values()['unexplained_yaw_rate_rps'] == 0.02

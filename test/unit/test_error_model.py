@@ -8,8 +8,8 @@ import pytest
 from slip_estimator.core.error_model import process_noise, system_matrix
 from slip_estimator.core.frames import rpy_to_dcm
 from slip_estimator.core.mechanization import mechanize
-from slip_estimator.core.measurements import (ForwardSpeed, NonHolonomic, ZeroAngularRate,
-                                              ZeroVelocity)
+from slip_estimator.core.measurements import (ForwardSpeed, NonHolonomic, WheelYawRate,
+                                              ZeroAngularRate, ZeroVelocity)
 from slip_estimator.core.planet import EARTH, MARS
 from slip_estimator.core.state import N_ERR, NavState, correct, difference
 
@@ -98,6 +98,28 @@ def test_forward_speed_jacobian_with_lever_arm():
     w = np.array([0.05, -0.02, 0.4])
     _check_jacobian(lambda s: m.innovation(0.7, point.point_velocity_b(s, w)[0]),
                     m.jacobian(est), est, np.random.default_rng(5))
+
+
+def test_wheel_yaw_rate_jacobian():
+    """The wheel yaw-rate aid: h(x) is the gyro z rate less its bias and the planet rate."""
+    est = nominal_state()
+    m = WheelYawRate(EARTH)
+    _check_jacobian(lambda s: m.innovation(s, 0.3, -0.25), m.jacobian(est), est,
+                    np.random.default_rng(6))
+
+
+def test_wheel_yaw_rate_closed_form():
+    """Level, heading north, at latitude L: the gyro z reads -w_ie sin L (FRD) plus its bias
+    when the body does not turn, so a wheel differential of zero gives a zero innovation when
+    the bias is right and the bias error otherwise; H picks -b_g[2]."""
+    L = math.radians(39.6)
+    st = NavState(np.eye(3), np.zeros(3), np.array([L, 0.0, 300.0]), np.zeros(3),
+                  np.array([0.0, 0.0, 0.004]))
+    m = WheelYawRate(EARTH)
+    w_z = -EARTH.omega_ie_rps * math.sin(L) + 0.004
+    assert m.innovation(st, w_z, 0.0)[0] == pytest.approx(0.0, abs=1e-12)
+    assert m.innovation(st, w_z + 0.01, 0.0)[0] == pytest.approx(-0.01)
+    assert m.jacobian(st)[0, 14] == -1.0 and np.count_nonzero(m.jacobian(st)[0, 3:14]) == 0
 
 
 def test_process_noise_is_symmetric_positive_semidefinite():

@@ -118,6 +118,55 @@ def test_update_beyond_the_gate_is_applied_with_R_inflated_onto_the_gate():
     assert np.array_equal(flt.state.v_eb_n, before)
 
 
+def test_body_velocity_updates_leave_heading_and_gyro_z_bias_to_the_gyro_and_yaw_aid():
+    """NHC, the forward-speed aid and its anchors (body-frame velocity) do not correct the
+    heading or the gyro z bias even where P correlates them with the velocity (consider
+    states: zero gain rows, Joseph form: P stays symmetric and their variances do not shrink);
+    the wheel yaw-rate aid does correct the z bias; the kalman update itself is the ordinary
+    one without ``consider``, and so is the paper's method (``wheel_aid: off``)."""
+    from slip_estimator.core.filter import BODY_VELOCITY_CONSIDER
+    from slip_estimator.core.kalman import update
+    from slip_estimator.core.measurements import NonHolonomic, WheelYawRate
+
+    rng = np.random.default_rng(7)
+    A = rng.standard_normal((N_ERR, N_ERR)) * np.sqrt(np.diag(P0))[:, None]
+    P = A @ A.T + np.diag(P0)  # every state correlated with every other
+
+    def fresh():
+        flt = started_filter(v_eb_n=(0.8, 0.1, 0.0))
+        flt.P = P.copy()
+        return flt
+
+    nhc = NonHolonomic(EARTH, np.array([-0.1, 0.0, 0.2]))
+    H = nhc.jacobian(fresh().state, (1,))
+    dx_plain, P_plain, _ = update(P, np.array([0.05]), H, np.array([[1e-4]]))
+    assert P_plain[2, 2] < P[2, 2] and abs(dx_plain[2]) > 1e-3  # what it would do
+    for name in ('nhc', 'wheel', None):
+        flt = fresh()
+        C0, b0 = flt.state.C_b_n.copy(), flt.state.b_g.copy()
+        H = nhc.jacobian(flt.state, (1,))
+        if name is None:
+            flt.anchor(np.array([0.05]), H, np.array([[1e-4]]))
+        else:
+            flt.update(name, np.array([0.05]), H, np.array([[1e-4]]))
+        heading = math.atan2(flt.state.C_b_n[1, 0], flt.state.C_b_n[0, 0])
+        # (roll and pitch corrections turn the heading at second order only)
+        assert abs(heading - math.atan2(C0[1, 0], C0[0, 0])) < 1e-3 * abs(dx_plain[2])
+        assert flt.state.b_g[2] == b0[2] and flt.state.b_g[0] != b0[0]
+        assert np.allclose(flt.P, flt.P.T, atol=0)
+        for i in BODY_VELOCITY_CONSIDER:
+            assert flt.P[i, i] == pytest.approx(P[i, i], rel=1e-9)
+    flt = fresh()
+    m = WheelYawRate(EARTH)
+    flt.update('wheel_yaw', m.innovation(flt.state, 0.01, 0.0), m.jacobian(flt.state),
+               np.array([[1e-4]]))
+    assert flt.state.b_g[2] != 0.0 and flt.P[14, 14] < P[14, 14]
+    paper = started_filter(Params(wheel_aid='off'), v_eb_n=(0.8, 0.1, 0.0))  # corrects all
+    paper.P = P.copy()
+    paper.update('nhc', np.array([0.05]), H, np.array([[1e-4]]))
+    assert paper.P[2, 2] < P[2, 2] and paper.state.b_g[2] != 0.0
+
+
 def test_correction_reports_the_forward_speed_and_along_track_gravity_change():
     flt = started_filter(v_eb_n=(1.0, 0.0, 0.0))
     dx = np.zeros(N_ERR)
@@ -354,3 +403,53 @@ def test_relevel_after_a_recovery_takes_the_tilt_from_the_specific_force():
     assert np.all(np.diag(P_new)[POS] >= np.diag(P)[POS])
     assert np.allclose(P_new, P_new.T, rtol=0, atol=1e-18)
     assert np.linalg.eigvalsh(P_new).min() > -1e-12  # PSD to round-off (max variance 1)
+
+
+def test_wheel_yaw_aid_is_tight_driving_straight_loose_in_turns_and_rate_independent():
+    """The aid's R: a differential of ~0 constrains the gyro z bias tightly whatever the
+    effective track; a turn only loosely (R grows with the differential x the track's
+    uncertainty); the differential-slip share carries the same information per second at any
+    wheel rate (R x rate constant); nothing at rest, without sides or before an interval."""
+    from slip_estimator.core.yaw_aid import WheelYawAid
+
+    p = Params(track_width=0.5)
+    aid = WheelYawAid(p, EARTH)
+    st = NavState(np.eye(3), np.zeros(3), np.array([0.7, 0.0, 300.0]), np.zeros(3), np.zeros(3))
+    straight = aid.variance_rps2(0.0, 0.5, 0.0, 0.1)
+    turn = aid.variance_rps2(-0.4, 0.5, 0.0, 0.1)
+    assert turn > 10.0 * straight
+    slip_only = 2.0 * p.wheel_yaw_rate_std_rps ** 2 * p.wheel_yaw_rate_correlation_s
+    enc = 2.0 * p.wheel_speed_std_mps ** 2 / 0.5 ** 2
+    for rate_hz in (5.0, 10.0, 100.0):
+        assert (aid.variance_rps2(0.0, 0.5, 0.0, 1.0 / rate_hz) - enc) / rate_hz == \
+            pytest.approx(slip_only)
+    w = WheelSample(0, 0.8, 0.8, 0.8)
+    assert aid.constraint(w, 0.0, st, 1e-4, moving=True) is None  # no interval yet
+    w = WheelSample(100_000_000, 0.8, 0.7, 0.9)  # right faster: a left turn, FRD z < 0
+    c = aid.constraint(w, 0.0, st, 1e-4, moving=True)
+    assert c.name == 'wheel_yaw' and c.innovation[0] == pytest.approx(
+        -0.2 / 0.5 - EARTH.omega_ie_rps * math.sin(0.7), rel=1e-6)
+    assert aid.constraint(WheelSample(200_000_000, 0.8, 0.8, 0.8), 0.0, st, 1e-4,
+                          moving=False) is None
+    assert aid.constraint(WheelSample(300_000_000, 0.8), 0.0, st, 1e-4, moving=True) is None
+    paper = WheelYawAid(Params(track_width=0.5, wheel_aid='off'), EARTH)  # the paper's method
+    assert [paper.constraint(WheelSample(k * 100_000_000, 0.8, 0.7, 0.9), 0.0, st, 1e-4, True)
+            for k in range(3)] == [None] * 3
+
+
+def test_wheel_yaw_aid_lets_go_while_wheels_and_gyro_disagree_persistently():
+    """A ground that yaws the robot beyond the declared unexplained yaw rate (wheels straight,
+    gyro 0.02 rad/s) raises R through the running innovation mean within seconds; when they
+    agree again it falls back to the declared one."""
+    from slip_estimator.core.yaw_aid import WheelYawAid
+
+    aid = WheelYawAid(Params(track_width=0.5), EARTH)
+    st = NavState(np.eye(3), np.zeros(3), np.array([0.0, 0.0, 300.0]), np.zeros(3), np.zeros(3))
+    R = []
+    for k in range(101):
+        yaw = 0.02 if 10 <= k < 60 else 0.0
+        c = aid.constraint(WheelSample(k * 100_000_000, 0.8, 0.8, 0.8), yaw, st, 1e-4, True)
+        if c is not None:
+            R.append(c.R[0, 0])
+    assert R[55] > 3.0 * R[5]  # after 4.5 s of disagreement (the ground share 10x)
+    assert R[-1] == pytest.approx(R[5], rel=0.2)  # 4 s after they agree again
