@@ -37,10 +37,13 @@ class ResidualMonitor:
     def add(self, channel: str, innovation: np.ndarray, S: np.ndarray) -> None:
         """Add the normalised innovation of one update (one component per call or a vector
         whose components are averaged)."""
-        z = np.asarray(innovation, dtype=float) / np.sqrt(np.maximum(np.diag(S), 1e-300))
+        # Scalars in Python floats: this runs on every update (most have one or two rows).
+        var = np.diag(S).tolist()
+        z = [float(nu) / math.sqrt(max(v, 1e-300))
+             for nu, v in zip(np.asarray(innovation, dtype=float).tolist(), var)]
         w = self.weight if self.count[channel] else 1.0
-        self.mean[channel] += w * (float(z.mean()) - self.mean[channel])
-        ms = float(np.mean(z * z))
+        self.mean[channel] += w * (sum(z) / len(z) - self.mean[channel])
+        ms = sum(x * x for x in z) / len(z)
         prev = self.mean_square[channel]
         self.mean_square[channel] = ms if math.isnan(prev) else prev + w * (ms - prev)
         self.count[channel] += 1
