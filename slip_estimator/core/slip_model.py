@@ -251,6 +251,12 @@ class SlipModel:
             self._assumed = True  # the INS was re-initialised from the rim: zero slip assumed
         self._anchor = None
         previous, baseline = self._previous, self.baseline
+        if baseline is None:
+            # A start in motion: no stop measured the ground yet, zero slip is assumed (the
+            # wheels' speed). A change the free INS measures from there is kept only beyond
+            # the chain's spread, as from a measured baseline; a poor IMU's excursion is not
+            # held for the whole drive (a consumer IMU read s = 0.6 for 200 s, truth 0.1).
+            baseline = 0.0
         # Within this speed of the previous hold or of the baseline a measurement is that
         # value: the wheel-side threshold, or less where the INS over a measurement's span is
         # better than that (a good IMU resolves smaller slip differences).
