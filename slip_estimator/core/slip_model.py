@@ -63,6 +63,9 @@ _RIM_MEMORY_S = 2.0
 """A wheel-side change needs the rim speed to have moved within this long."""
 _QUIET_AFTER_GAP_S = 4.0
 """After an IMU gap the filter settles its attitude and biases: no body-side step test."""
+_COARSE_INS_FRACTION = 0.15
+"""An INS whose speed over a measurement span scatters by more than this fraction of the rim
+speed cannot place a slip within the low class (0.2 wide)."""
 _ASSUMED_SLIP_STD = 0.1
 """1-sigma of a slip nothing measured (a start in motion, before a stop): half the low class."""
 _STOP_S = 0.5
@@ -251,11 +254,11 @@ class SlipModel:
             self._assumed = True  # the INS was re-initialised from the rim: zero slip assumed
         self._anchor = None
         previous, baseline = self._previous, self.baseline
-        if baseline is None:
-            # A start in motion: no stop measured the ground yet, zero slip is assumed (the
-            # wheels' speed). A change the free INS measures from there is kept only beyond
-            # the chain's spread, as from a measured baseline; a poor IMU's excursion is not
-            # held for the whole drive (a consumer IMU read s = 0.6 for 200 s, truth 0.1).
+        if baseline is None and math.sqrt(self.spread_var[-1]) > _COARSE_INS_FRACTION * abs(w):
+            # A start in motion with an INS too coarse to place a slip within the low class:
+            # no stop measured the ground yet, zero slip (the wheels' speed) is the assumed
+            # baseline, and a change measured from there is kept only beyond the chain's
+            # spread (a consumer IMU read s = 0.6 for 200 s, truth 0.1).
             baseline = 0.0
         # Within this speed of the previous hold or of the baseline a measurement is that
         # value: the wheel-side threshold, or less where the INS over a measurement's span is

@@ -185,9 +185,10 @@ def test_fifty_hz_robot_slip_is_honest(fifty_hz):
 
 def test_skid_steer_slip_is_honest(skid_steer):
     """The issue's 'honest sigma': known slips within max(3 sigma, 0.1) of the truth. Measured
-    90 % (seeds 1-4: 79-83 %): until the first stop zero slip is the assumed baseline, so a
-    consumer-IMU excursion within the chain's spread of it is not held for the drive (74 %
-    before, when a false s = 0.6 was held for 200 s; seeds 1-4: 44-85 %)."""
+    90 % (seeds 1-4: 74-91 %): until the first stop, an INS this coarse (its speed over a
+    measurement span scatters by more than 0.15 of the rim speed) has zero slip as the
+    assumed baseline, so an excursion within the chain's spread of it is not held for the
+    drive (74 % before, when a false s = 0.6 was held for 200 s; seeds 1-4: 44-85 %)."""
     assert skid_steer.honest_slip_share() >= 0.8
 
 
@@ -200,18 +201,16 @@ def test_fifty_hz_robot_position(fifty_hz):
     assert fifty_hz.estimate_error_m() < fifty_hz.wheel_odometry_error_m(1.5)
 
 
-@pytest.mark.xfail(strict=True, reason='along track: 312 m travelled against 296 m (the slip '
-                   'patches before the first stop read as the assumed zero slip; at 375-395 s '
-                   'a consumer-IMU excursion is held as s = 0.68): measured 8.5 m, seeds 1-4 '
-                   '21-46 m; the heading is right (true speed: 2.8 m)')
 def test_skid_steer_final_position_within_6_m(skid_steer):
     """The issue's check: <= 6 m against GNSS and better than the robot's own wheel odometry,
     published (geometric track) and with a hand-tuned track multiplier (here the ideal 1.7:
     4.4 m). The wheel yaw-rate aid observes the gyro z bias and the body-frame velocity
     updates no longer pull heading and z bias: heading within 10 deg over the log, 2.8 m with
-    the true speed (22.6 m overall without the aid). The 3.0 m measured before the assumed
-    in-motion baseline came from a -35 m distance error (a false s = 0.6 held for 200 s) that
-    the looping path happened to cancel."""
+    the true speed (22.6 m overall without the aid). Measured 2.6 m, 299 m travelled against
+    296 m, but from offsetting along-track errors: the slip patches before the first stop
+    read as the assumed zero slip (about +20 m) and a consumer-IMU excursion is held as
+    s = 0.95 over the last 20 s (-16 m). Not a margin to rely on: seeds 1-4 of this profile
+    end 10-57 m off (3.0 m here and 29-37 m before the coarse-INS baseline)."""
     error = skid_steer.estimate_error_m()
     assert error <= 6.0
     assert error < skid_steer.wheel_odometry_error_m()
