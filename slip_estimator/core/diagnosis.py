@@ -10,8 +10,12 @@ not a proof.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from slip_estimator.core.slip_model import SlipModel
 
 CHANNELS = ('zupt', 'zaru', 'nhc_lateral', 'nhc_vertical', 'wheel', 'wheel_yaw')
 
@@ -119,3 +123,34 @@ class ResidualMonitor:
         out['held_slip_mean'] = self.held_slip_mean
         out['unexplained_yaw_rate_rps'] = self.unexplained_yaw_rps
         return out
+
+
+_RESOLUTION_LIMIT = 0.2
+"""Body-side slip changes are resolved only beyond this (the low class's width): above it a
+medium slip that shows only in the IMU is missed (named in the health report)."""
+
+
+def slip_model_figures(model: SlipModel) -> tuple[dict, str | None]:
+    """The slip model's figures for /diagnostics and, when the IMU cannot resolve body-side
+    slip changes of the low class's width at the current rim speed, a note naming the limit.
+
+    ``slip_body_side_resolution``: the smallest body-side slip change the step test takes
+    for one at the last rim speed (its threshold over the rim speed; NaN at rest): the
+    IMU's own INS scatter, learned while driving, over the speed it has to be told from.
+    """
+    w = model.rim_speed_mps
+    resolution = model.body_change_mps(w) / abs(w) if w else math.nan
+    spread_mps = math.sqrt(model.spread_var[0])
+    values = {'slip_model_mode': model.mode.value,
+              'slip_hold': model.slip_hold if model.slip_hold is not None else math.nan,
+              'slip_baseline': model.baseline if model.baseline is not None else math.nan,
+              'slip_changes_wheel_side': model.changes['wheel'],
+              'slip_changes_body_side': model.changes['body'],
+              'slip_residual_spread_1s_mps': spread_mps,
+              'slip_body_side_resolution': resolution}
+    note = None
+    if resolution > _RESOLUTION_LIMIT:  # False for NaN
+        note = ('limit: body-side slip changes under %.2f are not resolved at %.2f m/s (INS '
+                'scatter %.3f m/s over 1 s): a slowing body at steady wheels is read only '
+                'beyond that, wheel-side changes as before' % (resolution, abs(w), spread_mps))
+    return values, note

@@ -1,12 +1,11 @@
 """The estimator facade: IMU and wheel samples in, odometry, slip and health out.
 
-It owns its parts (:class:`~slip_estimator.core.filter.ErrorStateFilter`, the measurement
-models, the alignment collector, detectors and monitors, the supervisor, the forward-speed
-history, the wheel aid, the pure outputs) and moves data between them by calls and return
-values; no part calls back into it. A wheel sample describes the body ``wheel_latency_s``
-before its stamp, which the INS may not have reached yet: :meth:`SlipEstimator.add_wheel`
-queues it, and the call that brings the INS past its stamp evaluates it
-(:meth:`SlipEstimator._evaluate_reached_wheels`: its slip, then the wheel aid).
+It owns its parts (the filter, measurement models, alignment, detectors and monitors, the
+supervisor, the forward-speed history, the wheel aid, the pure outputs) and moves data between
+them by calls and return values; no part calls back into it. A wheel sample describes the body
+``wheel_latency_s`` before its stamp, which the INS may not have reached yet: ``add_wheel``
+queues it, and the call that brings the INS past its stamp evaluates it (its slip, then the
+wheel aid).
 """
 from __future__ import annotations
 
@@ -129,8 +128,7 @@ class SlipEstimator:
             start = self.alignment.relevel(sample.f_ib_b, sample.omega_ib_b, sample.stamp_ns)
             if start is not None:
                 self._relevel(start, sample.stamp_ns)
-        # 5. strapdown step, covariance prediction every covariance_decimation samples, and
-        # 6. at the first prediction epoch after they are due: pseudo-measurements, health
+        # 5. strapdown, covariance every few samples; 6. when due: pseudo-measurements, health
         if self.filter.mechanize(f_l, w_l, dt_s):
             self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
             if self.updater.due(sample.stamp_ns):
@@ -298,4 +296,5 @@ class SlipEstimator:
         """Current self-diagnosis: state, counters, NIS statistics, bias estimates."""
         motion = (self.updater.is_stationary, self.updater.is_turning)
         return self.supervisor.health(self.stamp_ns, self.filter, motion, self.monitor,
-                                      self.timing, self.track.width_m, self.alignment.imu_problem)
+                                      self.timing, self.track.width_m, self.alignment.imu_problem,
+                                      self.slip_model)

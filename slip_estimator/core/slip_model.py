@@ -306,6 +306,11 @@ class SlipModel:
         """Learned variance of the free residual's change at each step-test scale, m^2/s^2."""
         return self.step_test.spread_var
 
+    @property
+    def rim_speed_mps(self) -> float | None:
+        """The rim speed of the last moving wheel sample, m/s (None at rest)."""
+        return self._last_w
+
     def wheel_change_mps(self, w: float) -> float:
         """Aid innovation that signals a wheel-side slip change at rim speed ``w``, m/s."""
         p = self.params
@@ -388,12 +393,3 @@ class SlipModel:
         self.step_test.clear()
         self._from_rest = False
         self.changes[side] += 1
-
-    def values(self) -> dict:
-        """Figures for /diagnostics."""
-        return {'slip_model_mode': self.mode.value,
-                'slip_hold': self.slip_hold if self.slip_hold is not None else math.nan,
-                'slip_baseline': self.baseline if self.baseline is not None else math.nan,
-                'slip_changes_wheel_side': self.changes['wheel'],
-                'slip_changes_body_side': self.changes['body'],
-                'slip_residual_spread_1s_mps': math.sqrt(self.spread_var[0])}

@@ -12,16 +12,20 @@ import enum
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from slip_estimator.core import kalman
-from slip_estimator.core.diagnosis import ResidualMonitor
+from slip_estimator.core.diagnosis import ResidualMonitor, slip_model_figures
 from slip_estimator.core.filter import ErrorStateFilter
 from slip_estimator.core.params import Params
 from slip_estimator.core.state import VEL, NavState
 from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.types import Health, WheelSample, imu_values_usable, wheel_speeds
+
+if TYPE_CHECKING:
+    from slip_estimator.core.slip_model import SlipModel
 
 _NS = 1_000_000_000
 _EVENTS_HELD = 20
@@ -220,10 +224,10 @@ class Supervisor:
     def health(self, stamp_ns: int | None, flt: ErrorStateFilter,
                motion: tuple[bool, bool],
                monitor: ResidualMonitor, timing: WheelTimingMonitor, track_width_m: float,
-               imu_problem: str | None) -> Health:
+               imu_problem: str | None, slip_model: SlipModel) -> Health:
         """The health report from the parts' figures and suspicions (``motion``: stationary
         and turning at the last update), the events of the last 10 s, the recovery and the
-        bias bounds."""
+        bias bounds; the slip model's resolution limit is stated, not a fault (no WARN)."""
         p = self.params
         values: dict = dict(self.counters)
         state = flt.state
@@ -267,5 +271,8 @@ class Supervisor:
             notes = list(dict.fromkeys(recent)) + notes
         if self.recovering_until_ns is not None:
             level = max(level, 1)
+        slip_values, limit = slip_model_figures(slip_model)
+        values.update(slip_values)
+        notes += [limit] if limit is not None and not motion[0] else []
         head = 'recovering' if self.recovering_until_ns is not None else 'running'
         return Health(level, head + (': ' + '; '.join(notes) if notes else ''), values)

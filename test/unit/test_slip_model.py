@@ -223,3 +223,25 @@ def test_the_held_slip_carries_its_own_uncertainty():
     assert measured.mode is Mode.TRACK
     assert 0.0 < measured.held_speed_var_mps2(0.6) < (0.1 * 0.6) ** 2
     assert SlipModel(Params()).held_speed_var_mps2(0.6) == 0.0  # at rest
+
+
+@pytest.mark.parametrize('walk_mps_rts, limited', [(0.005, False), (0.15, True)])
+def test_the_body_side_resolution_is_the_imus_own_scatter_over_the_rim_speed(walk_mps_rts,
+                                                                            limited):
+    """What the health report states: the smallest body-side slip change the step test takes
+    for one, its threshold over the rim speed. A good INS (0.005 m/s per sqrt(s)) resolves
+    the low class; a coarse one (0.15 m/s per sqrt(s), learned while driving) does not, and
+    the limit is named with the figures it comes from."""
+    from slip_estimator.core.diagnosis import slip_model_figures
+    t, start = drive(120.0)
+    w = 0.6 * start
+    model, _ = run(w, w * 0.95, walk_mps_rts=walk_mps_rts)
+    values, note = slip_model_figures(model)
+    resolution = values['slip_body_side_resolution']
+    assert resolution == pytest.approx(model.body_change_mps(0.6) / 0.6)
+    assert (resolution > 0.2) is limited
+    assert (note is not None) is limited
+    if limited:
+        assert f'{resolution:.2f}' in note and 'body-side' in note
+    model.step(int(200e9), 0.0, 0.0, 0.0, False, False)  # at rest: no rim speed to judge
+    assert math.isnan(slip_model_figures(model)[0]['slip_body_side_resolution'])
