@@ -43,7 +43,7 @@ class ResidualMonitor:
         whose components are averaged)."""
         # Scalars in Python floats: this runs on every update (most have one or two rows).
         var = np.diag(S).tolist()
-        z = [float(nu) / math.sqrt(max(v, 1e-300))
+        z = [nu / math.sqrt(max(v, 1e-300))
              for nu, v in zip(np.asarray(innovation, dtype=float).tolist(), var)]
         w = self.weight if self.count[channel] else 1.0
         self.mean[channel] += w * (sum(z) / len(z) - self.mean[channel])

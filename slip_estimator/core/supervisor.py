@@ -273,6 +273,7 @@ class Supervisor:
             level = max(level, 1)
         slip_values, limit = slip_model_figures(slip_model)
         values.update(slip_values)
-        notes += [limit] if limit is not None and not motion[0] else []
+        if limit is not None and not motion[0]:
+            notes.append(limit)  # after the level: a limit of the IMU, not a fault
         head = 'recovering' if self.recovering_until_ns is not None else 'running'
         return Health(level, head + (': ' + '; '.join(notes) if notes else ''), values)
