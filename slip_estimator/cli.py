@@ -9,6 +9,7 @@ evaluate           compare a replay output with truth (simulator truth or GNSS)
 import-pathfinder  convert a Pathfinder .mat log to an MCAP bag + params file
 bench              measure core, replay, live-node and memory performance on this machine
 validate           regenerate docs/validation.md: the model study on the real Pathfinder logs
+accuracy           score the slip model over seeded simulated drives and injected real logs
 default-config     print config/slip_estimator.yaml as generated from the parameter schema
 """
 from __future__ import annotations
@@ -87,6 +88,7 @@ COMMANDS = {
     'import-pathfinder': _lazy('slip_estimator.pathfinder.cli', 'import_main'),
     'bench': _lazy('slip_estimator.bench.cli', 'bench_main', (('--pathfinder', 's5t1.mat'),)),
     'validate': _lazy('slip_estimator.validation.cli', 'validate_main', (('--data-dir', ''),)),
+    'accuracy': _lazy('slip_estimator.accuracy', 'accuracy_main', (('--data-dir', ''),)),
     'default-config': _default_config,
 }
 

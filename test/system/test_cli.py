@@ -29,3 +29,27 @@ def test_no_command_prints_usage_and_fails(capsys):
 def test_node_help_does_not_start_the_node(capsys):
     assert node.main(['--help']) == 0
     assert capsys.readouterr().out.startswith('usage: slip-estimator-node')
+
+
+def test_accuracy_scores_a_drive_and_says_what_it_skipped(tmp_path, capsys):
+    """One drive of the matrix through the core: the fixed short drive keeps its level (the
+    test fails when the slip model loses it), and a missing real log is one line, not a
+    traceback."""
+    import json
+
+    out_json = tmp_path / 'acc.json'
+    assert cli.main(['accuracy', '--families', 'short', '--seeds', '1', '--jobs', '1',
+                     '--data-dir', str(tmp_path), '--json', str(out_json)]) == 0
+    out = capsys.readouterr().out
+    assert 'real-log cases skipped' in out and out.count('short ') == 1
+    m = json.loads(out_json.read_text())
+    assert [r['seed'] for r in m['sim']] == [0] and not m['real']
+    assert m['sim'][0]['balanced_accuracy'] >= 0.9
+
+
+def test_accuracy_bad_inputs_one_line(capsys):
+    for argv in (['--families', 'sand'], ['--set', 'slip_change_sigmaa=3'],
+                 ['--set', 'slip_change_sigma=-1'], ['--set', 'slip_change_sigma']):
+        assert cli.main(['accuracy', '--seeds', '0', *argv]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith('slip-estimator accuracy: ')
