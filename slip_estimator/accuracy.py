@@ -28,33 +28,18 @@ from pathlib import Path
 from typing import Any
 
 FAMILIES = ('short', 'default', 'mixed', 'patches', 'rough')
+"""The drive families scored, in print order (the names of ``sim.bag.SCENARIOS``)."""
 REAL_CASES = ('wheel', 'body0', 'body1', 'body2', 'body3', 'mixed')
-
-
-def _scenario(family: str, seed: int) -> Any:
-    from slip_estimator.sim import default_scenario, mixed_scenario, short_scenario
-    from slip_estimator.sim.drives import patch_scenario
-
-    if family == 'rough':
-        return patch_scenario(seed, rough=True)
-    return {'short': short_scenario, 'default': default_scenario, 'mixed': mixed_scenario,
-            'patches': patch_scenario}[family](seed)
 
 
 def sim_case(family: str, seed: int, overrides: dict[str, Any]) -> dict[str, Any]:
     """One simulated drive through the core; its slip scored on the simulator truth."""
-    from slip_estimator.effects import run_core
-    from slip_estimator.evaluation import evaluate_slip
+    from slip_estimator.effects import score_on_sim
     from slip_estimator.sim import simulate
-    from slip_estimator.sim.bag import sim_params
-    from slip_estimator.streams import from_simulation
+    from slip_estimator.sim.bag import SCENARIOS, sim_params
 
-    r = simulate(_scenario(family, seed))
-    p = sim_params(r).replace(**overrides)
-    _, out, _ = run_core(p, from_simulation(r, p))
-    s = evaluate_slip([o.stamp_ns for o in out], [o.slip_ratio for o in out],
-                      [o.slip_class for o in out], r.stamps_ns(r.wheel_t_s), r.slip_true,
-                      r.slip_class)
+    r = simulate(SCENARIOS[family](seed))
+    s = score_on_sim(r, sim_params(r).replace(**overrides)).slip
     return {'family': family, 'seed': seed, 'balanced_accuracy': s.balanced_accuracy,
             'sig_f1': s.significant_f1, 'recall': [float(x) for x in s.recall]}
 

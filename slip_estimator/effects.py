@@ -214,16 +214,36 @@ def run_core(params: Params, data: SensorData, odometry_every: int = 10,
     return est, out, np.array(odo, dtype=float).reshape(-1, 2)
 
 
-# --------------------------------------------------------------------------------------------
-# Real logs
-# --------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class LogScore:
-    """Slip and speed figures of one core run on a real log against RTK truth."""
+    """Slip and speed figures of one core run against truth (RTK, or the simulator's)."""
 
     slip: Any  # metrics.SlipResult
     speed_rmse_mps: float
     estimator: SlipEstimator
+
+
+def score_on_sim(result: Any, params: Params, effects: Effects = Effects()) -> LogScore:
+    """Run a simulated drive (``sim.SimResult``, with undeclared ``effects``) through the core;
+    score its slip and its odometry forward speed while moving on the simulator's truth."""
+    from slip_estimator.metrics import evaluate_slip
+    from slip_estimator.streams import from_simulation
+
+    r = result
+    est, out, odo = run_core(params, with_effects(from_simulation(r, params), effects))
+    imu_ns = r.stamps_ns(r.imu_t_s)
+    v_true = np.interp(odo[:, 0], imu_ns, r.v_ob_b[:, 0])
+    moving = np.interp(odo[:, 0], imu_ns, r.speed_mps) > 0.05
+    slip = evaluate_slip([o.stamp_ns for o in out], [o.slip_ratio for o in out],
+                         [o.slip_class for o in out], r.stamps_ns(r.wheel_t_s), r.slip_true,
+                         r.slip_class)
+    return LogScore(slip, float(np.sqrt(np.mean(np.square(odo[moving, 1] - v_true[moving])))),
+                    est)
+
+
+# --------------------------------------------------------------------------------------------
+# Real logs
+# --------------------------------------------------------------------------------------------
 
 
 def score_on_log(log: Any, params: Params, windows: Sequence[Window] = (),

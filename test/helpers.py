@@ -14,11 +14,9 @@ import numpy as np
 import pytest
 
 from slip_estimator.core.params import Params
-from slip_estimator.effects import Effects, run_core, with_effects
-from slip_estimator.metrics import evaluate_slip
+from slip_estimator.effects import Effects, score_on_sim
 from slip_estimator.sim import short_scenario, simulate
 from slip_estimator.sim.bag import sim_params
-from slip_estimator.streams import from_simulation
 
 DATA_DIR = Path(__file__).resolve().parents[1].parent / 'shared' / 'data' / 'pathfinder'
 
@@ -34,17 +32,11 @@ def mat_or_skip(name: str) -> Path:
 
 def score_sim_drive(seed: int, effects: Effects = Effects(), scenario=short_scenario, **overrides):
     """Feed a simulated drive (with optional undeclared effects) through the core in stamp
-    order; return the slip result, the forward-speed RMSE while moving and the per-sample
-    (estimated class, stationary truth) pairs."""
+    order (:func:`slip_estimator.effects.score_on_sim`); return the slip result and the
+    forward-speed RMSE while moving."""
     r = simulate(scenario(seed))
-    p = sim_params(r).replace(**overrides)
-    est, out, odo = run_core(p, with_effects(from_simulation(r, p), effects))
-    v_true = np.interp(odo[:, 0], r.stamps_ns(r.imu_t_s), r.v_ob_b[:, 0])
-    moving = np.interp(odo[:, 0], r.stamps_ns(r.imu_t_s), r.speed_mps) > 0.05
-    res = evaluate_slip([o.stamp_ns for o in out], [o.slip_ratio for o in out],
-                        [o.slip_class for o in out], r.stamps_ns(r.wheel_t_s), r.slip_true,
-                        r.slip_class)
-    return res, float(np.sqrt(np.mean(np.square(odo[moving, 1] - v_true[moving]))))
+    score = score_on_sim(r, sim_params(r).replace(**overrides), effects)
+    return score.slip, score.speed_rmse_mps
 
 
 T0_NS = 1_700_000_000 * 1_000_000_000

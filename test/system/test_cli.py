@@ -1,6 +1,8 @@
 """The command-line shells: help, unknown commands, the node's --help (no ROS started)."""
 from __future__ import annotations
 
+from helpers import one_line_exit_2
+
 from slip_estimator import cli
 from slip_estimator.ros import node
 
@@ -50,6 +52,5 @@ def test_accuracy_scores_a_drive_and_says_what_it_skipped(tmp_path, capsys):
 def test_accuracy_bad_inputs_one_line(capsys):
     for argv in (['--families', 'sand'], ['--set', 'slip_change_sigmaa=3'],
                  ['--set', 'slip_change_sigma=-1'], ['--set', 'slip_change_sigma']):
-        assert cli.main(['accuracy', '--seeds', '0', *argv]) == 2
-        err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and err[0].startswith('slip-estimator accuracy: ')
+        one_line_exit_2(cli.main, capsys, ['accuracy', '--seeds', '0', *argv],
+                        'slip-estimator accuracy: ')
