@@ -101,11 +101,11 @@ class Updater:
         less its bias at its instant, FRD), while moving (at rest ZARU does it); the gyro
         sample's variance is the IMU window's (noise and vibration), at least the white noise's.
         The correction made (none when not applied)."""
+        moving = not self.is_stationary
         gyro_var_rps2 = self.params.gyro_noise_density_rps_rthz ** 2 / imu_rate.dt_s
-        if stationary.window.n >= 2:
+        if stationary.window.n >= 2 and self.yaw_aid.applies(wheel, moving):
             gyro_var_rps2 = max(gyro_var_rps2, float(stationary.window.variance()[5]))
-        c = self.yaw_aid.constraint(wheel, yaw_rate_b_rps, flt.state, gyro_var_rps2,
-                                    moving=not self.is_stationary)
+        c = self.yaw_aid.constraint(wheel, yaw_rate_b_rps, flt.state, gyro_var_rps2, moving)
         if c is not None:
             self._monitor.add_yaw_disagreement(self.yaw_aid.unexplained_rps,
                                                self.params.wheel_yaw_rate_std_rps)

@@ -77,6 +77,11 @@ class WheelYawAid:
         return (self._encoder_var_mps2 / width_m ** 2 + gyro_var_rps2
                 + (z_rps ** 2 * self.track.relative_var + slip_var) * 2.0 * ground_s)
 
+    def applies(self, wheel: WheelSample, moving: bool) -> bool:
+        """Whether a wheel sample can give the constraint at all: the aid is on, the sides
+        are known, and the robot is ``moving`` (at rest ZARU does it)."""
+        return self.enabled and moving and wheel.rim_difference_mps is not None
+
     def constraint(self, wheel: WheelSample, yaw_rate_b_rps: float, state: NavState,
                    gyro_var_rps2: float, moving: bool) -> Constraint | None:
         """Feed the track-width fit with one wheel sample and the gyro z rate less its bias
@@ -87,8 +92,7 @@ class WheelYawAid:
         diff_mps = wheel.rim_difference_mps
         self.track.add(-yaw_rate_b_rps, diff_mps)
         last_ns, self._last_ns = self._last_ns, wheel.stamp_ns
-        if (not self.enabled or diff_mps is None or not moving or last_ns is None
-                or wheel.stamp_ns <= last_ns):
+        if not self.applies(wheel, moving) or last_ns is None or wheel.stamp_ns <= last_ns:
             return None
         interval_s = min((wheel.stamp_ns - last_ns) / _NS, _MAX_INTERVAL_S)
         width_m = self.track.width_m
