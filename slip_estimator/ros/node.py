@@ -39,10 +39,21 @@ with ``time.perf_counter`` into a ring buffer of the last ``CALLBACK_WINDOW`` ca
 ``/diagnostics`` status the node publishes carries ``callback_p50_ms``, ``callback_p99_ms`` and
 ``callback_max_ms`` over that window and ``callback_window`` (callbacks in it); ``unknown``
 before the first callback. ``slip-estimator bench --only live`` reads them.
+
+Shutdown
+--------
+Ctrl-C (SIGINT) or SIGTERM ends the spin; the node then destroys its DDS entities within
+``TEARDOWN_TIMEOUT_S``. Fast DDS 2.14 (Jazzy) can deadlock in that teardown when a peer's
+endpoints leave at the same moment (the participant's ``set_listener`` waits for a discovery
+callback that waits for a lock the teardown holds; seen about once in 80 stops of a test whose
+client node left just before the SIGINT). The wait holds the GIL, so the guard is
+``faulthandler``'s C watchdog: past the timeout it prints every thread's stack and exits with
+status 1 instead of hanging until launch escalates to SIGKILL.
 """
 from __future__ import annotations
 
 import dataclasses
+import faulthandler
 import sys
 import time
 from collections import deque
@@ -346,10 +357,25 @@ def main(args: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        bounded_teardown(node)
+    return 0
+
+
+TEARDOWN_TIMEOUT_S = 4.0
+"""Seconds the DDS teardown may take before the process exits anyway (status 1, stacks on
+stderr); a normal teardown takes well under 1 s, launch escalates SIGINT to SIGTERM after 5 s."""
+
+
+def bounded_teardown(node: Node | None, timeout_s: float = TEARDOWN_TIMEOUT_S) -> None:
+    """Destroy ``node`` and shut rclpy down, or exit the process with status 1 after
+    ``timeout_s`` if that hangs (see the module's Shutdown section)."""
+    faulthandler.dump_traceback_later(timeout_s, exit=True)
+    try:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    finally:
+        faulthandler.cancel_dump_traceback_later()
 
 
 if __name__ == '__main__':

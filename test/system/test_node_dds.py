@@ -55,6 +55,21 @@ def wait_for(predicate, timeout_s: float, what: str, proc: subprocess.Popen | No
     pytest.fail(f'timeout waiting for {what}')
 
 
+def stop_node(proc: subprocess.Popen, timeout_s: float = 20.0) -> str:
+    """SIGINT the node as Ctrl-C would and return its output; fail if it has not exited
+    after ``timeout_s`` (its teardown is bounded by ``TEARDOWN_TIMEOUT_S``).
+
+    Tests stop the node before their own client node leaves: a peer leaving during the
+    node's DDS teardown is what can trip Fast DDS's teardown deadlock (see node.py)."""
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+    try:
+        return proc.communicate(timeout=timeout_s)[0]
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        pytest.fail(f'node still running {timeout_s} s after SIGINT:\n{proc.communicate()[0]}')
+
+
 def kv(status: DiagnosticStatus) -> dict[str, str]:
     return {v.key: v.value for v in status.values}
 
@@ -178,16 +193,9 @@ def test_node_over_dds(ros_context, tmp_path):
         assert len(health) >= 7 and all(message_is_finite(d) for d in diags)
         print(f'discovery {discovery_s:.1f} s, {len(odoms)} odometry, {len(slips)} slip')
     finally:
+        output = stop_node(proc)
         executor.shutdown()
         node.destroy_node()
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=10.0)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-    output = proc.communicate()[0]
     assert proc.returncode == 0, output
     assert 'effective parameters' in output and 'wheel_radius=0.12' in output
 

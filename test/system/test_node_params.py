@@ -1,7 +1,6 @@
 """The real node over real DDS: parameter-file mistakes and the ``~/reset`` service."""
 from __future__ import annotations
 
-import signal
 import subprocess
 import sys
 import threading
@@ -18,7 +17,7 @@ from std_srvs.srv import Trigger
 from slip_estimator.paramfile import save_params
 
 sys.path.insert(0, str(Path(__file__).parent))
-from test_node_dds import kv, node_env, ros_context, wait_for  # noqa: E402,F401
+from test_node_dds import kv, node_env, ros_context, stop_node, wait_for  # noqa: E402,F401
 from helpers import synthetic_messages, synthetic_params  # noqa: E402
 
 NODE = [sys.executable, '-m', 'slip_estimator.ros.node', '--ros-args']
@@ -32,9 +31,7 @@ def run_briefly(args: list[str], seconds: float = 4.0) -> tuple[int | None, str]
         out, _ = proc.communicate(timeout=seconds)
         return proc.returncode, out
     except subprocess.TimeoutExpired:
-        proc.send_signal(signal.SIGINT)
-        out, _ = proc.communicate(timeout=20)
-        return None, out
+        return None, stop_node(proc)
 
 
 def test_misspelled_parameter_refused_unless_allowed(tmp_path):
@@ -127,7 +124,29 @@ def test_reset_service_applies_pending_change(ros_context, tmp_path):
         values = kv(reported()[0].status[0])
         assert values['parameter_change_pending'] == 'false' and values['node_resets'] == '1'
     finally:
+        stop_node(proc)
         executor.shutdown()
         node.destroy_node()
-        proc.send_signal(signal.SIGINT)
-        proc.communicate(timeout=20)
+
+
+def test_stuck_teardown_exits_with_the_stacks():
+    """A DDS teardown that never returns (Fast DDS's deadlock, here a loop holding the GIL)
+    ends the process with status 1 and every thread's stack on stderr; a normal one returns."""
+    stuck = ('from slip_estimator.ros.node import bounded_teardown\n'
+             'class Stuck:\n'
+             '    def destroy_node(self):\n'
+             '        while True:\n'
+             '            pass\n'
+             'bounded_teardown(Stuck(), timeout_s=0.5)\n')
+    proc = subprocess.run([sys.executable, '-c', stuck], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 1 and 'Timeout' in proc.stderr, proc.stderr
+    assert 'in destroy_node' in proc.stderr and 'in bounded_teardown' in proc.stderr
+    normal = ('import time\n'
+              'from slip_estimator.ros.node import bounded_teardown\n'
+              'bounded_teardown(None, timeout_s=0.2)\n'
+              'time.sleep(0.6)\n'  # the watchdog was cancelled: still alive past it
+              'print("alive")\n')
+    proc = subprocess.run([sys.executable, '-c', normal], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0 and proc.stdout.strip() == 'alive', proc.stderr
