@@ -195,6 +195,8 @@ def test_node_over_dds(ros_context, tmp_path):
     finally:
         output = stop_node(proc)
         executor.shutdown()
+        if spinner.is_alive():  # no spin may use the node being destroyed
+            spinner.join(timeout=10.0)
         node.destroy_node()
     assert proc.returncode == 0, output
     assert 'effective parameters' in output and 'wheel_radius=0.12' in output

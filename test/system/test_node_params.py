@@ -126,6 +126,8 @@ def test_reset_service_applies_pending_change(ros_context, tmp_path):
     finally:
         stop_node(proc)
         executor.shutdown()
+        if spinner.is_alive():  # no spin may use the node being destroyed
+            spinner.join(timeout=10.0)
         node.destroy_node()
 
 
