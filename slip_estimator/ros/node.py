@@ -42,11 +42,14 @@ before the first callback. ``slip-estimator bench --only live`` reads them.
 
 Shutdown
 --------
-Ctrl-C (SIGINT) or SIGTERM ends the spin; the node then destroys its DDS entities within
-``TEARDOWN_TIMEOUT_S``. Fast DDS 2.14 (Jazzy) can deadlock in that teardown when a peer's
-endpoints leave at the same moment (the participant's ``set_listener`` waits for a discovery
-callback that waits for a lock the teardown holds; seen about once in 80 stops of a test whose
-client node left just before the SIGINT). The wait holds the GIL, so the guard is
+Ctrl-C (SIGINT) or SIGTERM ends the spin, or the start when it comes before the node is
+built, with status 0 (SIGTERM shuts rclpy's context down from its signal thread, under a
+half-built node or a running callback: the call that then fails is the stop, not an error;
+nothing is published once the context is down). The node then destroys its DDS
+entities within ``TEARDOWN_TIMEOUT_S``. Fast DDS 2.14 (Jazzy) can deadlock in that teardown
+when a peer's endpoints leave at the same moment (the participant's ``set_listener`` waits for
+a discovery callback that waits for a lock the teardown holds; seen about once in 80 stops of
+a test whose client node left just before the SIGINT). The wait holds the GIL, so the guard is
 ``faulthandler``'s C watchdog: past the timeout it prints every thread's stack and exits with
 status 1 instead of hanging until launch escalates to SIGKILL.
 """
@@ -269,6 +272,8 @@ class SlipEstimatorNode(Node):
         return callback
 
     def _publish(self, outputs: list[Output]) -> None:
+        if not self.context.ok():  # stopping (a signal shut the context down): nowhere to send
+            return
         for topic, msg in outputs:
             if topic == TOPIC_DIAGNOSTICS:
                 self._add_callback_stats(msg)
@@ -356,6 +361,11 @@ def main(args: list[str] | None = None) -> int:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        if rclpy.ok():
+            raise  # a failure of the node itself: its traceback is the report
+        # A stop signal shut rclpy's context down under a half-built node or a running
+        # callback (SIGTERM: from rclpy's signal thread): the failed call is the stop.
     finally:
         bounded_teardown(node)
     return 0

@@ -55,14 +55,15 @@ def wait_for(predicate, timeout_s: float, what: str, proc: subprocess.Popen | No
     pytest.fail(f'timeout waiting for {what}')
 
 
-def stop_node(proc: subprocess.Popen, timeout_s: float = 20.0) -> str:
-    """SIGINT the node as Ctrl-C would and return its output; fail if it has not exited
+def stop_node(proc: subprocess.Popen, timeout_s: float = 20.0,
+              sig: signal.Signals = signal.SIGINT) -> str:
+    """Signal the node (SIGINT, as Ctrl-C) and return its output; fail if it has not exited
     after ``timeout_s`` (its teardown is bounded by ``TEARDOWN_TIMEOUT_S``).
 
     Tests stop the node before their own client node leaves: a peer leaving during the
     node's DDS teardown is what can trip Fast DDS's teardown deadlock (see node.py)."""
     if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(sig)
     try:
         return proc.communicate(timeout=timeout_s)[0]
     except subprocess.TimeoutExpired:

@@ -1,11 +1,14 @@
 """The real node over real DDS: parameter-file mistakes and the ``~/reset`` service."""
 from __future__ import annotations
 
+import signal
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
+import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
@@ -32,6 +35,22 @@ def run_briefly(args: list[str], seconds: float = 4.0) -> tuple[int | None, str]
         return proc.returncode, out
     except subprocess.TimeoutExpired:
         return None, stop_node(proc)
+
+
+@pytest.mark.parametrize('after_s', [0.0, 1.0])
+def test_sigterm_stops_the_node_cleanly(after_s):
+    """SIGTERM (systemd, launch's escalation after SIGINT) ends the node with status 0, while
+    it is still being built (0 s after it logs its subscriptions: its service and timer come
+    after) and once it spins."""
+    proc = subprocess.Popen(NODE, env=node_env(), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    assert proc.stdout is not None
+    for line in iter(proc.stdout.readline, ''):  # until it is being built (or exits)
+        if 'subscribed to' in line:
+            break
+    time.sleep(after_s)
+    out = stop_node(proc, sig=signal.SIGTERM)
+    assert proc.returncode == 0, out
 
 
 def test_misspelled_parameter_refused_unless_allowed(tmp_path):
