@@ -72,6 +72,8 @@ _STOP_S = 0.5
 """Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
 _ANCHOR_S = 0.5
 """Aided samples before a change whose mean anchors its continuity measurement."""
+CHANGE_LOOKBACK_S = SCALES_S[-1] + _ANCHOR_S + 0.5
+"""How far before a body-side alarm its onset and continuity anchor can lie, s."""
 
 
 class Mode(enum.Enum):
@@ -376,6 +378,8 @@ class SlipModel:
             (z - v) ** 2 - self.aid_noise_var)
         a = self._aided
         a.append((t_ns, z, v, v_free, self._aid_accel))
+        while a[0][0] < t_ns - int(CHANGE_LOOKBACK_S * _NS):
+            a.popleft()
         if not steady:
             # Speeding up or braking, the slip of a skid-steer rover is not the cruise slip
             # held, and the INS is good over the few tenths of a second it takes: no aid.

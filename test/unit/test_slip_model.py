@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from slip_estimator.core.params import Params
-from slip_estimator.core.slip_model import Mode, SlipModel, speed_ratio
+from slip_estimator.core.slip_model import CHANGE_LOOKBACK_S, Mode, SlipModel, speed_ratio
 
 DT_S = 0.1
 
@@ -158,6 +158,16 @@ def test_slow_ins_drift_is_not_slip(seed):
     moving = t > 6.0
     assert np.median(np.abs(v_est[moving] - v[moving])) < 0.03
     assert np.percentile(np.abs(v_est[moving] - v[moving]), 95) < 0.09
+
+
+def test_a_long_steady_drive_keeps_only_the_change_lookback():
+    """Ten minutes on one slip: the aided samples a change may be anchored on stay within the
+    lookback (they once grew by every wheel sample of the drive)."""
+    t, start = drive(600.0)
+    w = 0.6 * start
+    model, _ = run(w, w * 0.95, walk_mps_rts=0.0)
+    assert model.mode is Mode.TRACK and sum(model.changes.values()) == 0
+    assert len(model._aided) <= CHANGE_LOOKBACK_S / DT_S + 1
 
 
 def test_a_commanded_speed_change_at_constant_slip_is_not_a_slip_change():
