@@ -23,7 +23,7 @@ from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint, Wheel
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, LocalEnu
-from slip_estimator.core.slip_model import AidDecision
+from slip_estimator.core.slip_model import CHANGE_LOOKBACK_S, AidDecision
 from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor
 from slip_estimator.core.timing import WheelTimingMonitor
@@ -68,7 +68,7 @@ class SlipEstimator:
         self.odom_frame: LocalEnu | None = None  # origin: base_link at alignment
         self._wheel_odo = WheelDeadReckoning(math.radians(90.0 - p.initial_heading_deg))  # ENU
         self.omega_ib_b = np.zeros(3)  # the last gyro sample, rad/s
-        self.history = ForwardSpeedHistory(self._l_bw_b)
+        self.history = ForwardSpeedHistory(self._l_bw_b, aid_horizon_s=CHANGE_LOOKBACK_S)
         self._waiting_wheels = WheelQueue()
         self.updater.reset()
         self.supervisor.reset()
@@ -249,6 +249,10 @@ class SlipEstimator:
         if not d.anchor:
             self._aid_update(d.z_mps, at.v_fwd_mps, d.var_mps2, excluded=not d.repair)
             return
+        if d.take_back_since_ns is not None:
+            # A body-side change began there: what the aid taught since was the old slip's.
+            undo = -self.history.aid_taught_since(d.take_back_since_ns)
+            self.history.apply(self.filter.correct(undo), aid=True)
         # A known jump of the INS error (a change, or a settled measurement): not gated.
         correction = self.filter.anchor(self.forward.innovation(d.z_mps, at.v_fwd_mps),
                                         self.forward.jacobian(self.filter.state),
@@ -263,7 +267,7 @@ class SlipEstimator:
             self.filter, 'wheel', self.forward.innovation(z_mps, v_hist_mps),
             self.forward.jacobian(self.filter.state), self.forward.covariance(var_mps2))
         if correction is not None:
-            self.history.apply(correction, aid=excluded)
+            self.history.apply(correction, aid=excluded, taught=excluded)
 
     def _unknown(self, stamp_ns: int, wheel_speed_mps: float = 0.0) -> SlipEstimate:
         self.counters['slip_unknown'] += 1

@@ -187,7 +187,8 @@ class ErrorStateFilter:
         a_before = self.g_mps2 * float(st.C_b_n[2, 0]) - float(st.b_a[0])
         correct(st, dx)
         return Correction(float(st.C_b_n[:, 0] @ st.v_eb_n) - before,
-                          self.g_mps2 * float(st.C_b_n[2, 0]) - float(st.b_a[0]) - a_before)
+                          self.g_mps2 * float(st.C_b_n[2, 0]) - float(st.b_a[0]) - a_before,
+                          dx)
 
     def update(self, name: str, innovation: np.ndarray, H: np.ndarray,
                R: np.ndarray) -> UpdateOutcome:

@@ -11,6 +11,15 @@ it (as one running shift, not by rewriting the entries), so an old wheel sample 
 with the corrected, not the superseded, estimate. The free speed is what the INS said then and
 is not shifted; a wheel-aid correction is accumulated (its velocity jump, and the along-track
 acceleration its tilt and accelerometer-bias change cause from then on) and taken out of it.
+
+Taking the aid back: the aid is right only while the held slip is. When the body slows in
+sand at an unchanged wheel rate the aid pulls the INS towards the old speed until the step
+test fires, 1-2.5 s later, and the filter explains that pull as tilt and accelerometer bias
+(0.1-0.4 deg on the simulated drives, 0.4-1 deg on the real test17run log). Left in place,
+that acceleration error (0.02-0.1 m/s^2) makes the free INS measure the change short (patch
+entries read 30-40 % low). The history keeps the aid's recent error-state corrections
+(:meth:`ForwardSpeedHistory.aid_taught_since`) so that the estimator can take back the tilt
+and bias parts made since a change began.
 """
 from __future__ import annotations
 
@@ -18,7 +27,9 @@ from collections import deque
 from collections.abc import Iterator
 from typing import NamedTuple
 
-from slip_estimator.core.state import NavState
+import numpy as np
+
+from slip_estimator.core.state import ATT, BA, N_ERR, NavState
 from slip_estimator.core.types import WheelSample
 
 _NS = 1_000_000_000
@@ -44,17 +55,22 @@ class Correction(NamedTuple):
     """change of the forward speed ``C_b_n[:, 0] . v_eb_n``, m/s"""
     da_fwd_mps2: float
     """change of ``g C_b_n[2, 0] - b_a[0]`` (along-track gravity less bias), m/s^2"""
+    dx: np.ndarray | None = None
+    """the error state fed back (``core.state`` layout)"""
 
 
 class ForwardSpeedHistory:
     """Forward speed, yaw rate and free speed over the last ``horizon_s`` (see module doc)."""
 
-    def __init__(self, l_bw_b: tuple[float, float, float], horizon_s: float = 2.0) -> None:
+    def __init__(self, l_bw_b: tuple[float, float, float], horizon_s: float = 2.0,
+                 aid_horizon_s: float = 4.0) -> None:
         self._l_bw_b = l_bw_b
         self._horizon_ns = int(horizon_s * _NS)
+        self._aid_horizon_ns = int(aid_horizon_s * _NS)
         self._rows: deque = deque()
         self._shift_mps = 0.0  # sum of the forward-speed corrections so far
         self._aid_v_mps, self._aid_a_mps2 = 0.0, 0.0
+        self._taught: deque = deque()  # (stamp ns, dx) of the wheel aid's corrections
 
     def __len__(self) -> int:
         return len(self._rows)
@@ -62,6 +78,7 @@ class ForwardSpeedHistory:
     def clear(self) -> None:
         """Forget the recorded past and the aid's accumulated effect (after a recovery)."""
         self._rows.clear()
+        self._taught.clear()
         self._aid_v_mps, self._aid_a_mps2 = 0.0, 0.0
 
     def newest(self) -> tuple[int, HistoryPoint]:
@@ -69,14 +86,33 @@ class ForwardSpeedHistory:
         t, v, y, f, a = self._rows[-1]
         return t, HistoryPoint(v + self._shift_mps, y, f, a)
 
-    def apply(self, correction: Correction, aid: bool) -> None:
+    def apply(self, correction: Correction, aid: bool, taught: bool = False) -> None:
         """Move the recorded forward speeds by a correction; a wheel-aid one (``aid``) is also
-        kept out of the free speed from now on."""
+        kept out of the free speed from now on; an ordinary aid update (``taught``, not an
+        anchor or a take-back) is remembered for :meth:`aid_taught_since`."""
         change = correction.dv_fwd_mps
         self._shift_mps += change
         if aid:
             self._aid_v_mps += change
             self._aid_a_mps2 += correction.da_fwd_mps2
+        if taught and correction.dx is not None and self._rows:
+            stamp_ns = self._rows[-1][0]
+            remembered = self._taught
+            remembered.append((stamp_ns, correction.dx))
+            while remembered[0][0] < stamp_ns - self._aid_horizon_ns:
+                remembered.popleft()
+
+    def aid_taught_since(self, since_ns: int) -> np.ndarray:
+        """The tilt and accelerometer-bias parts of the wheel aid's corrections made at or
+        after ``since_ns`` (INS time, within the last ``aid_horizon_s``), summed into one error
+        state (velocity, position and gyro bias zero); they are forgotten."""
+        dx = np.zeros(N_ERR)
+        taught = self._taught
+        while taught and taught[-1][0] >= since_ns:
+            d = taught.pop()[1]
+            dx[ATT] += d[ATT]
+            dx[BA] += d[BA]
+        return dx
 
     def record(self, stamp_ns: int, state: NavState, w_b: list[float], dt_s: float) -> None:
         """Append the state at ``stamp_ns`` (gyro rate ``w_b``, IMU step ``dt_s``)."""

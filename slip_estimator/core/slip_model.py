@@ -25,8 +25,13 @@ Modes (:class:`Mode`):
 * ``MEASURE``: after a start or a detected change the INS runs free (no wheel aid) until the
   body has settled; a change is anchored at once on velocity continuity (the held model's speed
   at the onset plus the INS speed change since), so the filter velocity is right while the
-  change is still going on. The settled slip is then held: after a start from rest it is the
-  ground's baseline; one within the change threshold of the previous hold is a false alarm;
+  change is still going on. Until the alarm the aid pulled the INS towards the old slip, and
+  the filter took the pull for tilt and accelerometer bias: the alarm takes those corrections
+  back (``AidDecision.take_back_since_ns``), or the free INS measures the change short (patch
+  entries read 30-40 % low). Not after a start in motion: there the aid is still levelling
+  the INS (a 30-Hz consumer IMU lost 1-2.5 deg). The settled slip is then held: after a start
+  from rest it is the ground's baseline; one within the change threshold of the previous hold
+  is a false alarm;
   with ``slip_baseline = 'snap'`` one within it of the baseline is that ground again (this
   ends a chain of INS errors from one change to the next, measured on the real logs);
 * ``TRACK``: the held slip turns the rim speed into a forward-speed aid ``g(s_hold) w`` that
@@ -93,6 +98,9 @@ class AidDecision:
     held_slip : the slip just settled on (for the residual monitor), or None.
     repair : True when the update repairs INS damage (after an IMU gap) rather than holding a
         slip: the free speed then keeps its effect (the step test must see the repaired INS).
+    take_back_since_ns : a body-side change began at this wheel time: the tilt and
+        accelerometer-bias corrections the aid made since were made under the old slip and are
+        taken back before this anchor (:mod:`slip_estimator.core.history`); None: keep them.
     """
 
     z_mps: float
@@ -100,6 +108,7 @@ class AidDecision:
     anchor: bool = False
     held_slip: float | None = None
     repair: bool = False
+    take_back_since_ns: int | None = None
 
 
 def speed_ratio(s: float) -> float:
@@ -367,12 +376,17 @@ class SlipModel:
                 z0 = sum(x[1] for x in before) / len(before)
                 f0 = sum(x[3] for x in before) / len(before)
                 t0, a0 = before[-1][0], before[-1][4]
+                # Once a stop measured the ground, the aid's tilt and bias corrections since
+                # the onset are the old slip's and are taken back; after a start in motion
+                # they are still levelling the INS (a 30-Hz consumer IMU lost 1-2.5 deg).
+                take_back = t0 if self.baseline is not None else None
                 self._start_change((z0, f0, True), 'body')
                 # Re-anchor now on continuity (the aid had been pulling the INS back onto the
                 # old slip): the held speed before the onset plus the free speed change since,
                 # without the aid corrections made since the onset.
                 return AidDecision(z0 + v_free - f0 + a0 * (t_ns - t0) * 1e-9,
-                                   p.wheel_aid_std_mps ** 2, anchor=True)
+                                   p.wheel_aid_std_mps ** 2, anchor=True,
+                                   take_back_since_ns=take_back)
         # Consistency noise of INS and wheels (vibration, encoder quantisation, pitching).
         self.aid_noise_var += (0.02 if self.aid_noise_var else 1.0) * (
             (z - v) ** 2 - self.aid_noise_var)

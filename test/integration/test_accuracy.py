@@ -63,3 +63,20 @@ def test_the_papers_method_alone_drifts_on_the_same_drive():
     and the medium/high classes are lost: the reason for the wheel aid."""
     res, speed_rmse = score_sim_drive(0, wheel_aid='off')
     assert res.balanced_accuracy < 0.8 and speed_rmse > 0.05
+
+
+
+def test_a_patch_entered_after_hills_is_measured_in_full():
+    """Until the step test fires, the wheel aid pulls the INS towards the old slip and the
+    filter explains the pull as tilt and accelerometer bias; at the alarm that is taken back.
+    Left in, the free INS measured these two patches (0.49, then 0.74, at 428-442 s of a
+    seeded patch drive) at 0.28 and 0.37."""
+    from slip_estimator.sim.drives import patch_scenario
+    r = simulate(patch_scenario(1))
+    p = sim_params(r)
+    _, out, _ = run_core_data(p, from_simulation(r, p))
+    t0 = r.stamps_ns(r.wheel_t_s)[0]
+    t = np.array([(o.stamp_ns - t0) * 1e-9 for o in out])
+    slip = np.array([o.slip_ratio for o in out])
+    for (a, b), s_true in (((430.0, 435.0), 0.49), ((437.0, 442.0), 0.74)):
+        assert np.median(slip[(t > a) & (t < b)]) == pytest.approx(s_true, abs=0.1)

@@ -24,7 +24,7 @@ from slip_estimator.core.params import (
     renamed_in,
 )
 from slip_estimator.core.planet import EARTH, gravity_n
-from slip_estimator.core.state import BA, BG, N_ERR, POS, VEL, NavState
+from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
 from slip_estimator.core.types import WheelSample
 from slip_estimator.core.wheel_aid import WheelAid
@@ -216,6 +216,25 @@ def test_history_shifts_the_recorded_speed_by_each_correction_and_keeps_the_free
     assert newest.v_free_mps == pytest.approx(1.1 - (-0.1 + 0.5 * 0.1))
     assert newest.aid_accel_mps2 == 0.5
     assert h.at(-1) is None and h.at(600_000_000) is None
+
+
+def test_history_remembers_the_aids_tilt_and_bias_corrections_to_take_them_back():
+    h = ForwardSpeedHistory((0.0, 0.0, 0.0), aid_horizon_s=1.0)
+    dx = np.arange(1.0, N_ERR + 1.0)
+    for k in range(20):  # an aid update every 0.1 s
+        h.record(k * 100_000_000, level_state(v_eb_n=(1.0, 0.0, 0.0)), [0.0, 0.0, 0.0], 0.1)
+        h.apply(Correction(0.0, 0.0, (k + 1) * dx), aid=True, taught=True)
+    h.apply(Correction(0.1, 0.0, 100.0 * dx), aid=True)  # an anchor: not the aid's teaching
+    taught = h.aid_taught_since(1_500_000_000)  # the updates at 1.5-1.9 s: 16+...+20 = 90
+    assert taught[ATT] == pytest.approx(90.0 * dx[ATT])
+    assert taught[BA] == pytest.approx(90.0 * dx[BA])
+    assert not taught[VEL].any() and not taught[POS].any() and not taught[BG].any()
+    assert not h.aid_taught_since(1_500_000_000).any()  # taken back once
+    # older than the horizon (1 s before the newest) is forgotten
+    assert h.aid_taught_since(0)[ATT] == pytest.approx((10 + 11 + 12 + 13 + 14 + 15) * dx[ATT])
+    h.apply(Correction(0.0, 0.0, dx), aid=True, taught=True)
+    h.clear()
+    assert not h.aid_taught_since(0).any()
 
 
 def test_history_keeps_its_horizon_and_interpolates():

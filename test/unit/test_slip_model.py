@@ -16,6 +16,7 @@ import pytest
 
 from slip_estimator.core.params import Params
 from slip_estimator.core.slip_model import CHANGE_LOOKBACK_S, Mode, SlipModel, speed_ratio
+from slip_estimator.core.step_test import SCALES_S
 
 DT_S = 0.1
 
@@ -27,9 +28,10 @@ def smooth_step(t_s: np.ndarray, t0_s: float, ramp_s: float) -> np.ndarray:
 
 def run(w_mps: np.ndarray, v_true_mps: np.ndarray, seed: int = 0, walk_mps_rts: float = 0.01,
         drift_mps2: float = 0.0, params: Params | None = None, pitch_rad=None,
-        in_motion: bool = False):
+        in_motion: bool = False, decisions: list | None = None):
     """Feed the sequences at 10 Hz; return the model and the per-sample filter speed
-    (``in_motion``: the filter joined a moving rover, no stop anchors the first slip)."""
+    (``in_motion``: the filter joined a moving rover, no stop anchors the first slip;
+    ``decisions`` collects (sample time ns, decision) of every decision made)."""
     model = SlipModel(params or Params())
     if in_motion:
         model.reset(from_rest=False)
@@ -48,6 +50,8 @@ def run(w_mps: np.ndarray, v_true_mps: np.ndarray, seed: int = 0, walk_mps_rts: 
                        pitch)
         if d is not None:
             v_est = d.z_mps if d.anchor else v_est + 0.5 * (d.z_mps - v_est)
+            if decisions is not None:
+                decisions.append((int(k * DT_S * 1e9), d))
         speeds.append(v_est)
     return model, np.array(speeds)
 
@@ -79,6 +83,29 @@ def test_body_slowing_at_a_held_wheel_rate_is_read_as_slip(s_patch):
     assert np.median(1.0 - v_est[inside] / w[inside]) == pytest.approx(s_patch, abs=0.05)
     after = t > 52.0
     assert np.median(1.0 - v_est[after] / w[after]) == pytest.approx(0.05, abs=0.05)
+
+
+@pytest.mark.parametrize('in_motion', [False, True])
+def test_a_body_side_alarm_takes_the_aids_teaching_back_once_a_stop_measured_the_ground(
+        in_motion):
+    """The aid's tilt and bias corrections since the onset were made under the old slip: the
+    alarm's anchor says since when (at least the longest step-test scale back). After a start
+    in motion the aid is still levelling the INS: nothing is taken back."""
+    t, start = drive()
+    if in_motion:
+        start = np.ones_like(t)
+    w = 0.6 * start
+    s = 0.05 + 0.45 * smooth_step(t, 25.0, 1.5)
+    decisions: list = []
+    model, _ = run(w, w * (1.0 - s), in_motion=in_motion, decisions=decisions)
+    alarms = [(t_ns, d) for t_ns, d in decisions if d.anchor and d.held_slip is None
+              and t_ns > 20e9]
+    assert model.changes['body'] >= 1 and alarms
+    for t_ns, d in alarms:
+        if in_motion:
+            assert d.take_back_since_ns is None
+        else:
+            assert 20e9 < d.take_back_since_ns <= t_ns - SCALES_S[-1] * 1e9
 
 
 @pytest.mark.parametrize('pitch_deg, expected', [(-6.0, -0.25), (0.0, 0.05)])
