@@ -29,11 +29,11 @@ Modes (:class:`Mode`):
   the filter took the pull for tilt and accelerometer bias: the alarm takes those corrections
   back (``AidDecision.take_back_since_ns``), or the free INS measures the change short (patch
   entries read 30-40 % low). Not after a start in motion: there the aid is still levelling
-  the INS (a 30-Hz consumer IMU lost 1-2.5 deg). The settled slip is then held: after a start
-  from rest it is the ground's baseline; one within the change threshold of the previous hold
-  is a false alarm;
-  with ``slip_baseline = 'snap'`` one within it of the baseline is that ground again (this
-  ends a chain of INS errors from one change to the next, measured on the real logs);
+  the INS (a 30-Hz consumer IMU lost 1-2.5 deg). The settled slip is then held
+  (:mod:`slip_estimator.core.slip_chain`): after a start from rest it is the ground's
+  baseline; one within the change threshold of the previous hold is a false alarm; with
+  ``slip_baseline = 'snap'`` one within it of the baseline is that ground again (this ends a
+  chain of INS errors from one change to the next, measured on the real logs);
 * ``TRACK``: the held slip turns the rim speed into a forward-speed aid ``g(s_hold) w`` that
   stops the INS drift without assuming zero slip, while the step test watches for the next
   step (no aid while the rim speed changes: encoder lag).
@@ -53,6 +53,7 @@ from dataclasses import dataclass
 from slip_estimator.core.params import Params
 from slip_estimator.core.run_ahead import RunAheadCheck
 from slip_estimator.core.slip import slip_ratio
+from slip_estimator.core.slip_chain import SlipChain
 from slip_estimator.core.step_test import SCALES_S, StepTest
 
 _NS = 1_000_000_000
@@ -68,11 +69,6 @@ _RIM_MEMORY_S = 2.0
 """A wheel-side change needs the rim speed to have moved within this long."""
 _QUIET_AFTER_GAP_S = 4.0
 """After an IMU gap the filter settles its attitude and biases: no body-side step test."""
-_COARSE_INS_FRACTION = 0.15
-"""An INS whose speed over a measurement span scatters by more than this fraction of the rim
-speed cannot place a slip within the low class (0.2 wide)."""
-_ASSUMED_SLIP_STD = 0.1
-"""1-sigma of a slip nothing measured (a start in motion, before a stop): half the low class."""
 _STOP_S = 0.5
 """Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
 _ANCHOR_S = 0.5
@@ -133,7 +129,7 @@ class SlipModel:
         self.step_test = StepTest((2.0 * params.wheel_aid_std_mps) ** 2)
         self.aid_noise_var = 0.0
         self.changes = {'wheel': 0, 'body': 0}
-        self.baseline: float | None = None
+        self.chain = SlipChain(params)
         self._run_ahead = RunAheadCheck()
         self.reset(from_rest=True)  # a new filter starts from rest (or is told otherwise)
 
@@ -153,8 +149,7 @@ class SlipModel:
         self._last_t_ns = 0
         self._run_ahead.reset()
         self._aid_accel = 0.0
-        self._chain_var = 0.0
-        self._assumed = False  # the held slip rests on an assumption, not a measurement
+        self.chain.reset()
         self._reanchor = False
         self._quiet_until_ns = 0
 
@@ -245,7 +240,9 @@ class SlipModel:
         change: velocity continuity from the held model before it, plus the INS speed change
         across it, a change within ``slip_continuity_sigma`` of the measured aid noise taken as
         none. After a body-side change: the INS speed since the alarm's re-anchor (continuity
-        from the free speed, whose onset the aid had already pulled at)."""
+        from the free speed, whose onset the aid had already pulled at). What it is held as
+        (baseline, false alarm, run-ahead): :class:`~slip_estimator.core.slip_chain.SlipChain`.
+        """
         p = self.params
         vals = self._vals
         if self._anchor is None:
@@ -261,55 +258,24 @@ class SlipModel:
             if abs(dv) < p.slip_continuity_sigma * math.sqrt(self.aid_noise_var):
                 dv = 0.0
             measured = slip_ratio(z_before + dv, sum(x[2] for x in vals) / len(vals))
-        if self._anchor is None and not self._from_rest:
-            self._assumed = True  # the INS was re-initialised from the rim: zero slip assumed
-        self._anchor = None
-        previous, baseline = self._previous, self.baseline
-        if baseline is None and math.sqrt(self.spread_var[-1]) > _COARSE_INS_FRACTION * abs(w):
-            # A start in motion with an INS too coarse to place a slip within the low class:
-            # no stop measured the ground yet, zero slip (the wheels' speed) is the assumed
-            # baseline, and a change measured from there is kept only beyond the chain's
-            # spread (a consumer IMU read s = 0.6 for 200 s, truth 0.1).
-            baseline = 0.0
-        # Within this speed of the previous hold or of the baseline a measurement is that
-        # value: the wheel-side threshold, or less where the INS over a measurement's span is
-        # better than that (a good IMU resolves smaller slip differences).
-        h = min(self.wheel_change_mps(w),
-                p.slip_continuity_sigma * math.sqrt(self.spread_var[-1]))
-        if not self._from_rest and self._run_ahead.implausible(measured):
-            # A run-ahead no slope explains (core.run_ahead) is the INS: back to the
-            # ground's baseline (none yet after a start in motion: the wheels' speed).
-            measured = baseline if baseline is not None else 0.0
-            self._assumed = self._assumed or baseline is None
-        if self._from_rest:
-            self.baseline, self._from_rest, self._assumed = measured, False, False
-            self._chain_var = 0.0
-            return measured
-        # Each change measured from the held model before it adds its INS error to the
-        # model's: the chain's spread since the last anchor (a start from rest, or a return to
-        # the baseline) is how far from the baseline a measurement may still be that ground.
-        self._chain_var += self.spread_var[-1]
-        if previous is not None and abs(measured - previous) * abs(w) < h:
-            measured = previous  # a false alarm: the INS confirms the held slip
-        elif (baseline is not None and p.slip_baseline == 'snap'
-              and abs(measured - baseline) * abs(w)
-              < max(h, p.slip_continuity_sigma * math.sqrt(self._chain_var))):
-            # Back on ordinary ground: the slip measured after the last start, anchored on the
-            # zero velocity at rest, is more accurate than a chain of INS intervals.
-            measured = baseline
-            self._chain_var = 0.0
-        return measured
+        from_rest, unmeasured = self._from_rest, self._anchor is None and not self._from_rest
+        self._anchor, self._from_rest = None, False
+        return self.chain.settle(
+            measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
+            from_rest, unmeasured, not from_rest and self._run_ahead.implausible(measured))
 
     def held_speed_var_mps2(self, w: float) -> float:
         """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided
-        covariance knows nothing of the hold), m^2/s^2: the INS spread of a measurement plus
-        the chain since the last anchor; ``_ASSUMED_SLIP_STD`` of ``w`` if nothing measured it
-        (a start in motion); none while measuring or at rest (the free INS carries its own)."""
+        covariance knows nothing of the hold), m^2/s^2 (:meth:`SlipChain.held_speed_var_mps2`);
+        none while measuring or at rest (the free INS carries its own)."""
         if self.mode is not Mode.TRACK:
             return 0.0
-        if self._assumed:
-            return (_ASSUMED_SLIP_STD * w) ** 2
-        return self.spread_var[-1] + self._chain_var
+        return self.chain.held_speed_var_mps2(w, self.spread_var[-1])
+
+    @property
+    def baseline(self) -> float | None:
+        """The ground's slip measured after the last start from rest (None before one)."""
+        return self.chain.baseline
 
     # ------------------------------------------------------------------ tracking
     @property

@@ -282,3 +282,21 @@ def test_the_body_side_resolution_is_the_imus_own_scatter_over_the_rim_speed(wal
         assert f'{resolution:.2f}' in note and 'body-side' in note
     model.step(int(200e9), 0.0, 0.0, 0.0, False, False)  # at rest: no rim speed to judge
     assert math.isnan(slip_model_figures(model)[0]['slip_body_side_resolution'])
+
+
+def test_the_chain_holds_a_measurement_as_baseline_false_alarm_or_new_slip():
+    """Closed form at 0.5 m/s with a 2.5-s INS spread of 0.01 m/s: the change threshold is
+    min(0.05, 2 x 0.01) = 0.02 m/s, i.e. 0.04 in slip."""
+    from slip_estimator.core.slip_chain import SlipChain
+    chain = SlipChain(Params())
+    spread = 1e-4
+    def settle(measured, previous, from_rest=False):
+        return chain.settle(measured, previous, 0.5, spread, 0.05, from_rest, False, False)
+    assert settle(0.08, None, from_rest=True) == 0.08 and chain.baseline == 0.08
+    assert settle(0.43, 0.40) == 0.40  # within 0.04 of the hold: a false alarm
+    assert settle(0.11, 0.40) == 0.08  # within the chain's spread of the baseline: that ground
+    assert chain.chain_var == 0.0
+    assert settle(0.30, 0.08) == 0.30  # a change
+    assert chain.held_speed_var_mps2(0.5, spread) == pytest.approx(2 * spread)
+    chain.settle(0.5, 0.3, 0.5, spread, 0.05, False, True, True)  # run-ahead, unmeasured
+    assert chain.assumed and chain.held_speed_var_mps2(0.5, spread) == pytest.approx(0.05 ** 2)
