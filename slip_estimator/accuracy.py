@@ -41,7 +41,8 @@ def sim_case(family: str, seed: int, overrides: dict[str, Any]) -> dict[str, Any
     r = simulate(SCENARIOS[family](seed))
     s = score_on_sim(r, sim_params(r).replace(**overrides)).slip
     return {'family': family, 'seed': seed, 'balanced_accuracy': s.balanced_accuracy,
-            'sig_f1': s.significant_f1, 'recall': [float(x) for x in s.recall]}
+            'sig_f1': s.significant_f1, 'recall': [float(x) for x in s.recall],
+            'slip_z2_mean': s.slip_z2_mean, 'slip_within_3sigma': s.slip_within_3sigma}
 
 
 def real_case(name: str, log_path: str, overrides: dict[str, Any]) -> dict[str, Any]:
@@ -62,7 +63,8 @@ def real_case(name: str, log_path: str, overrides: dict[str, Any]) -> dict[str, 
     else:
         r = score_on_log(log, params, (), body_windows=TEST17RUN_BODY_PATTERNS[int(name[4:])])
     return {'case': name, 'balanced_accuracy': r.slip.balanced_accuracy,
-            'sig_f1': r.slip.significant_f1, 'speed_rmse_mps': r.speed_rmse_mps}
+            'sig_f1': r.slip.significant_f1, 'speed_rmse_mps': r.speed_rmse_mps,
+            'slip_z2_mean': r.slip.slip_z2_mean, 'slip_within_3sigma': r.slip.slip_within_3sigma}
 
 
 def _run(task: tuple) -> dict[str, Any]:
@@ -86,16 +88,20 @@ def score_matrix(families: list[str], seeds: list[int], log_path: Path | None,
 
 
 def summary_lines(m: dict[str, Any]) -> list[str]:
-    """The printed table: per family the mean and worst balanced accuracy and each drive's;
-    then the real cases."""
+    """The printed table: per family the mean and worst balanced accuracy, the mean F1, how
+    honest the published slip sigma is (median over drives of the mean ``z^2``, 1 when honest;
+    mean share within 3 sigma) and each drive's balanced accuracy; then the real cases."""
     lines = []
     families = list(dict.fromkeys(r['family'] for r in m['sim']))
     for f in families:
         rows = [r for r in m['sim'] if r['family'] == f]
         bal = [r['balanced_accuracy'] for r in rows]
         f1 = [r['sig_f1'] for r in rows]
+        z2 = sorted(r['slip_z2_mean'] for r in rows)
+        in3 = [r['slip_within_3sigma'] for r in rows]
         lines.append(f'{f:8s} balanced mean {sum(bal) / len(bal):.3f} min {min(bal):.3f}  '
-                     f'F1 mean {sum(f1) / len(f1):.3f}  per seed '
+                     f'F1 mean {sum(f1) / len(f1):.3f}  sigma z2 {z2[len(z2) // 2]:.1f} '
+                     f'in 3 sigma {sum(in3) / len(in3):.2f}  per seed '
                      + ' '.join(f'{x:.2f}' for x in bal))
     if m['sim']:
         lines.append(f'all {len(m["sim"])} drives: balanced mean '
@@ -103,7 +109,8 @@ def summary_lines(m: dict[str, Any]) -> list[str]:
     for r in m['real']:
         if 'balanced_accuracy' in r:
             lines.append(f'test17run {r["case"]:6s} balanced {r["balanced_accuracy"]:.3f} '
-                         f'F1 {r["sig_f1"]:.3f}')
+                         f'F1 {r["sig_f1"]:.3f}  sigma z2 {r["slip_z2_mean"]:.1f} '
+                         f'in 3 sigma {r["slip_within_3sigma"]:.2f}')
         else:
             lines.append(f'test17run plain  forward-speed RMSE {r["speed_rmse_mps"]:.4f} m/s')
     return lines

@@ -158,7 +158,8 @@ def evaluate_run(run: RunData, llh0: np.ndarray | None = None,
     if run.truth_slip_stamp_ns is not None and len(run.truth_slip_stamp_ns):
         source = truth_source or 'simulation'
         slip = evaluate_slip(run.est_slip_stamp_ns, run.est_slip, run.est_slip_class,
-                             run.truth_slip_stamp_ns, run.truth_slip, run.truth_slip_class, tol_s)
+                             run.truth_slip_stamp_ns, run.truth_slip, run.truth_slip_class, tol_s,
+                             run.est_slip_std)
         if run.truth_odom_stamp_ns is not None and len(run.truth_odom_stamp_ns) > 1:
             speed = evaluate_speed(run.est_slip_stamp_ns, run.est_body_speed_mps,
                                    run.truth_odom_stamp_ns, run.truth_odom_v_mps[:, 0])
@@ -189,7 +190,8 @@ def evaluate_run(run: RunData, llh0: np.ndarray | None = None,
                      f'({"estimated body x axis" if x_axis is not None else "GNSS course"}), '
                      f'fit window {gnss_window_s} s, wheel time offset {wheel_time_offset_s} s')
         slip = evaluate_slip(run.est_slip_stamp_ns, run.est_slip, run.est_slip_class,
-                             gnss_truth.stamp_ns, gnss_truth.s, gnss_truth.slip_class, tol_s)
+                             gnss_truth.stamp_ns, gnss_truth.s, gnss_truth.slip_class, tol_s,
+                             run.est_slip_std)
         speed = evaluate_speed(run.est_slip_stamp_ns, run.est_body_speed_mps,
                                gnss_truth.stamp_ns, gnss_truth.v_forward_mps)
         if run.est_odom_stamp_ns is not None and len(run.est_odom_stamp_ns):

@@ -66,6 +66,12 @@ class SlipResult(_Record):
         moving, covered samples (positive = class >= 2).
     slip_mae : mean |s_est - s_truth| on moving, covered samples.
     n_matched : truth samples with an estimate within the time tolerance.
+    slip_z2_mean : mean of ``z^2 = ((s_est - s_truth) / sigma)^2`` over the moving, covered
+        samples with a published 1-sigma (the slip's NEES: 1 when the sigma is honest, above
+        when it is over-confident); NaN without sigmas. Against a GNSS truth it includes that
+        truth's own error.
+    slip_within_3sigma : share of those samples with ``|z| <= 3`` (0.997 for an honest
+        Gaussian sigma).
     """
 
     counts: np.ndarray
@@ -81,6 +87,8 @@ class SlipResult(_Record):
     significant_f1: float
     slip_mae: float
     n_matched: int
+    slip_z2_mean: float = float('nan')
+    slip_within_3sigma: float = float('nan')
 
 
 @dataclass(frozen=True)
@@ -159,8 +167,9 @@ def confusion_matrix(est_class: np.ndarray, truth_class: np.ndarray) -> tuple[np
 
 def evaluate_slip(est_stamp_ns: np.ndarray, est_slip: np.ndarray, est_class: np.ndarray,
                   truth_stamp_ns: np.ndarray, truth_slip: np.ndarray, truth_class: np.ndarray,
-                  tol_s: float = 0.05) -> SlipResult:
-    """Compare an estimated slip series with a truth slip series.
+                  tol_s: float = 0.05, est_slip_std: np.ndarray | None = None) -> SlipResult:
+    """Compare an estimated slip series (and its published 1-sigma ``est_slip_std``, if
+    given) with a truth slip series.
 
     Every truth sample is matched to the nearest estimate within ``tol_s``; truth samples
     without one count as "unknown" (they lower coverage and the strict balanced accuracy).
@@ -170,6 +179,8 @@ def evaluate_slip(est_stamp_ns: np.ndarray, est_slip: np.ndarray, est_class: np.
     est_stamp_ns = est_stamp_ns[order]
     est_slip = np.asarray(est_slip, dtype=float)[order]
     est_class = np.asarray(est_class, dtype=int)[order]
+    est_std = (np.full(len(est_slip), np.nan) if est_slip_std is None
+               else np.asarray(est_slip_std, dtype=float)[order])
     truth_slip = np.asarray(truth_slip, dtype=float)
     truth_class = np.asarray(truth_class, dtype=int)
     idx = match_nearest(truth_stamp_ns, est_stamp_ns, round(tol_s * 1e9))
@@ -205,9 +216,16 @@ def evaluate_slip(est_stamp_ns: np.ndarray, est_slip: np.ndarray, est_class: np.
     scored = covered & np.isfinite(matched_slip) & np.isfinite(truth_slip)
     err = np.abs(matched_slip - truth_slip)[scored]
     mae = float(err.mean()) if err.size else float('nan')
+    std = np.where(matched, est_std[np.maximum(idx, 0)], np.nan) if len(est_std) else \
+        np.full(len(truth_slip), np.nan)
+    with np.errstate(invalid='ignore'):
+        sigma_ok = scored & np.isfinite(std) & (std > 0.0)
+    z = (matched_slip - truth_slip)[sigma_ok] / std[sigma_ok]
+    z2_mean = float(np.mean(z * z)) if z.size else float('nan')
+    within = float(np.mean(np.abs(z) <= 3.0)) if z.size else float('nan')
     return SlipResult(counts, percent, n_truth, n_unknown, recall, balanced, balanced_strict,
                       coverage, float(precision), float(rec), float(f1), mae,
-                      int(matched.sum()))
+                      int(matched.sum()), z2_mean, within)
 
 
 def evaluate_speed(est_stamp_ns: np.ndarray, est_v_mps: np.ndarray, truth_stamp_ns: np.ndarray,

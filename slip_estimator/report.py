@@ -182,7 +182,9 @@ def summary_text(ev: RunEvaluation) -> str:
                   f'{_fmt(s.balanced_accuracy_strict)}), coverage {_fmt(s.coverage)}',
                   f'significant slip |s|>0.2: precision {_fmt(s.significant_precision)}, '
                   f'recall {_fmt(s.significant_recall)}, F1 {_fmt(s.significant_f1)}',
-                  f'slip MAE {_fmt(s.slip_mae)}  (matched samples {s.n_matched})']
+                  f'slip MAE {_fmt(s.slip_mae)}  (matched samples {s.n_matched})',
+                  f'published slip sigma: mean z^2 {_fmt(s.slip_z2_mean)} (1 when honest), '
+                  f'within 3 sigma {_fmt(s.slip_within_3sigma)}']
     if ev.speed is not None:
         lines.append(f'forward speed RMSE {_fmt(ev.speed.rmse, " m/s")}, mean '
                      f'{_fmt(ev.speed.mean, " m/s")} (n={ev.speed.n})')

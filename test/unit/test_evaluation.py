@@ -106,6 +106,27 @@ def test_missing_estimates_lower_coverage() -> None:
     assert r.coverage == 0.5 and r.n_matched == 5
 
 
+@pytest.mark.parametrize('stated_over_true, z2', [(1.0, 1.0), (0.5, 4.0), (2.0, 0.25)])
+def test_slip_sigma_honesty_is_the_mean_z2_of_the_published_sigma(stated_over_true, z2) -> None:
+    """Errors drawn with sigma 0.05 and published as ``stated_over_true`` times that: the mean
+    z^2 is 1 / ratio^2 (the slip's NEES) and the share within 3 sigma that of a Gaussian at
+    3 * ratio; samples at rest, with no sigma or sigma 0, are left out; without sigmas NaN."""
+    rng = np.random.default_rng(5)
+    n = 20000
+    t = np.arange(n) * NS // 10
+    truth = np.full(n, 0.3)
+    est = truth + rng.normal(0.0, 0.05, n)
+    cls = np.full(n, 2)
+    cls[:100] = 0                                  # at rest: not scored
+    std = np.full(n, 0.05 * stated_over_true)
+    std[100:110], std[110:120] = np.nan, 0.0       # no sigma published
+    r = evaluate_slip(t, est, cls, t, truth, cls, est_slip_std=std)
+    assert r.slip_z2_mean == pytest.approx(z2, rel=0.05)
+    assert r.slip_within_3sigma == pytest.approx(math.erf(3.0 * stated_over_true / math.sqrt(2.0)),
+                                                 abs=0.01)
+    assert math.isnan(evaluate_slip(t, est, cls, t, truth, cls).slip_z2_mean)
+
+
 def test_match_nearest_tolerance() -> None:
     ref = np.array([0, 100, 200])
     assert match_nearest(np.array([-10, 49, 51, 260, 1000]), ref, 50).tolist() == [0, 0, 1, -1,
