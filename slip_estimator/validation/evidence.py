@@ -341,7 +341,8 @@ def body_side(log: Any, params: dict[str, Params]) -> list[dict[str, Any]]:
             s = r.slip
             row[key] = {'balanced_accuracy': s.balanced_accuracy,
                         'recall': [float(x) for x in s.recall], 'sig_f1': s.significant_f1,
-                        'slip_mae': s.slip_mae, 'v_rmse': r.speed_rmse_mps}
+                        'slip_mae': s.slip_mae, 'v_rmse': r.speed_rmse_mps,
+                        'slip_z2': s.slip_z2_mean}
         out.append(row)
     return out
 

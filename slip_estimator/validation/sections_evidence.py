@@ -89,6 +89,8 @@ def body_side_section(rows: list[dict[str, Any]] | None,
     mean = {k: np.mean([r[k]['balanced_accuracy'] for r in rows if r['kind'] == 'body'])
             for k in keys}
     f1 = {k: np.mean([r[k]['sig_f1'] for r in rows if r['kind'] == 'body']) for k in keys}
+    z2 = {k: np.mean([r[k].get('slip_z2', np.nan) for r in rows if r['kind'] == 'body'])
+          for k in keys}
     return ([
         '### The slip model on body-side slip (real IMU)', '',
         ('A rover holds its commanded wheel rate: in soft ground the wheels keep turning and '
@@ -103,7 +105,9 @@ def body_side_section(rows: list[dict[str, Any]] | None,
         + md_table(['windows'] + keys, table)
         + ['', (f'Mean over the four body-side patterns: balanced accuracy '
                 + ', '.join(f'{k} {fmt(mean[k], 2)}' for k in keys) + '; F1 '
-                + ', '.join(f'{k} {fmt(f1[k], 2)}' for k in keys) + '.'), '',
+                + ', '.join(f'{k} {fmt(f1[k], 2)}' for k in keys) + '; mean z^2 of the '
+                'published slip sigma against the truth (1 when the sigma is honest) '
+                + ', '.join(f'{k} {fmt(z2[k], 1)}' for k in keys) + '.'), '',
            _imu_scatter_text(scatter), ''])
 
 
