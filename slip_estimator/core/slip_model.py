@@ -63,8 +63,10 @@ _TURN_THRESHOLD_FACTOR = 1.5
 """The INS is worse in turns (lever arm, skid): the body-side threshold is raised by this."""
 _STEADY_FRACTION = 0.05
 """Rim speed steady: it moved by less than this fraction (plus 1 cm/s) since the last sample."""
-_WHEEL_CHANGE_SAMPLES = 3
-"""Consecutive samples of a wheel-side discrepancy that make a change (not one noisy sample)."""
+_WHEEL_CHANGE_S = 0.15
+"""A wheel-side discrepancy that lasts this long is a change, not a noisy sample or an encoder
+glitch: the third consecutive sample at 10 Hz, the ninth at 50 Hz (a count of samples would
+take a 0.06-s glitch for a change at 50 Hz)."""
 _RIM_MEMORY_S = 2.0
 """A wheel-side change needs the rim speed to have moved within this long."""
 _QUIET_AFTER_GAP_S = 4.0
@@ -140,7 +142,7 @@ class SlipModel:
         self._anchor: tuple[float, float, bool] | None = None  # (model v, INS v, free INS?)
         self._measure_since_ns: int | None = None
         self._vals: list[tuple[float, float, float, float, int]] = []
-        self._change_count = 0
+        self._change_since_ns: int | None = None  # a wheel-side discrepancy since then
         self._last_w: float | None = None
         self._recent_w: deque = deque()
         self._aided: deque = deque()  # (t, z, v, v_free) while tracking
@@ -317,15 +319,16 @@ class SlipModel:
         gap = abs(z - v)
         if gap > self.wheel_change_mps(w) and \
                 max(abs(w - wk) for _, wk in self._recent_w) * g > 0.5 * gap:
-            self._change_count += 1
-            if self._change_count >= _WHEEL_CHANGE_SAMPLES:
+            if self._change_since_ns is None:
+                self._change_since_ns = t_ns
+            if t_ns - self._change_since_ns >= int(_WHEEL_CHANGE_S * _NS):
                 a = self._aided
                 a = [x for x in a if x[0] >= t_ns - int(_ANCHOR_S * _NS)]
                 anchor = (sum(x[1] for x in a) / len(a), sum(x[2] for x in a) / len(a), False) \
                     if a else None
                 self._start_change(anchor, 'wheel')
             return None
-        self._change_count = 0
+        self._change_since_ns = None
         # Body side: a step of the free residual.
         k = self.params.slip_change_sigma * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
         onset_ns = self.step_test.add(t_ns, v_free - z, self._aid_accel,
@@ -372,7 +375,7 @@ class SlipModel:
     def _start_change(self, anchor: tuple[float, float, bool] | None, side: str) -> None:
         self._previous, self._anchor = self.slip_hold, anchor
         self.slip_hold, self.mode = None, Mode.MEASURE
-        self._measure_since_ns, self._change_count = None, 0
+        self._measure_since_ns, self._change_since_ns = None, None
         self._aided.clear()
         self.step_test.clear()
         self._from_rest = False

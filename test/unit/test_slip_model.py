@@ -28,16 +28,16 @@ def smooth_step(t_s: np.ndarray, t0_s: float, ramp_s: float) -> np.ndarray:
 
 def run(w_mps: np.ndarray, v_true_mps: np.ndarray, seed: int = 0, walk_mps_rts: float = 0.01,
         drift_mps2: float = 0.0, params: Params | None = None, pitch_rad=None,
-        in_motion: bool = False, decisions: list | None = None):
-    """Feed the sequences at 10 Hz; return the model and the per-sample filter speed
-    (``in_motion``: the filter joined a moving rover, no stop anchors the first slip;
+        in_motion: bool = False, decisions: list | None = None, dt_s: float = DT_S):
+    """Feed the sequences every ``dt_s`` (10 Hz); return the model and the per-sample filter
+    speed (``in_motion``: the filter joined a moving rover, no stop anchors the first slip;
     ``decisions`` collects (sample time ns, decision) of every decision made)."""
     model = SlipModel(params or Params())
     if in_motion:
         model.reset(from_rest=False)
     rng = np.random.default_rng(seed)
-    err = np.cumsum(rng.normal(0.0, walk_mps_rts * np.sqrt(DT_S), len(w_mps))) \
-        + drift_mps2 * DT_S * np.arange(len(w_mps))
+    err = np.cumsum(rng.normal(0.0, walk_mps_rts * np.sqrt(dt_s), len(w_mps))) \
+        + drift_mps2 * dt_s * np.arange(len(w_mps))
     v_free = v_true_mps + err
     v_est = float(v_true_mps[0])
     speeds = []
@@ -46,18 +46,18 @@ def run(w_mps: np.ndarray, v_true_mps: np.ndarray, seed: int = 0, walk_mps_rts: 
             v_est += v_true_mps[k] - v_true_mps[k - 1] + err[k] - err[k - 1]  # the INS
         moving = abs(w) >= 0.02 or abs(v_est) >= 0.02
         pitch = 0.0 if pitch_rad is None else float(pitch_rad[k])
-        d = model.step(int(k * DT_S * 1e9), float(w), v_est, float(v_free[k]), moving, False,
+        d = model.step(int(k * dt_s * 1e9), float(w), v_est, float(v_free[k]), moving, False,
                        pitch)
         if d is not None:
             v_est = d.z_mps if d.anchor else v_est + 0.5 * (d.z_mps - v_est)
             if decisions is not None:
-                decisions.append((int(k * DT_S * 1e9), d))
+                decisions.append((int(k * dt_s * 1e9), d))
         speeds.append(v_est)
     return model, np.array(speeds)
 
 
-def drive(duration_s: float = 60.0):
-    t = np.arange(0.0, duration_s, DT_S)
+def drive(duration_s: float = 60.0, dt_s: float = DT_S):
+    t = np.arange(0.0, duration_s, dt_s)
     start = smooth_step(t, 2.0, 2.0)
     return t, start
 
@@ -195,6 +195,22 @@ def test_a_long_steady_drive_keeps_only_the_change_lookback():
     model, _ = run(w, w * 0.95, walk_mps_rts=0.0)
     assert model.mode is Mode.TRACK and sum(model.changes.values()) == 0
     assert len(model._aided) <= CHANGE_LOOKBACK_S / DT_S + 1
+
+
+@pytest.mark.parametrize('rate_hz', [10.0, 50.0])
+def test_a_wheel_glitch_is_not_a_slip_change_at_any_wheel_rate(rate_hz):
+    """The rim speed jumps for 0.1 s (an encoder glitch: the body does not follow): no slip
+    change, whether that is one wheel sample (10 Hz) or five (50 Hz; a count of three
+    samples took it for one). The wheels spinning up for good at 40 s is one at both rates."""
+    dt = 1.0 / rate_hz
+    t, start = drive(50.0, dt)
+    w = 0.5 * start
+    w[(t >= 25.0) & (t < 25.1 - 1e-9)] += 0.2
+    v = 0.45 * start
+    glitch, _ = run(w, v, walk_mps_rts=0.0, dt_s=dt)
+    assert glitch.changes == {'wheel': 0, 'body': 0}
+    spin_up, _ = run(w + 0.2 * (t >= 40.0), v, walk_mps_rts=0.0, dt_s=dt)
+    assert spin_up.changes == {'wheel': 1, 'body': 0}
 
 
 def test_a_commanded_speed_change_at_constant_slip_is_not_a_slip_change():
