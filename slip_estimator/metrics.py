@@ -185,10 +185,15 @@ def evaluate_slip(est_stamp_ns: np.ndarray, est_slip: np.ndarray, est_class: np.
     truth_class = np.asarray(truth_class, dtype=int)
     idx = match_nearest(truth_stamp_ns, est_stamp_ns, round(tol_s * 1e9))
     matched = idx >= 0
-    e_cls = np.where(matched, est_class[np.maximum(idx, 0)], -1) if len(est_class) else \
-        np.full(len(truth_class), -1)
-    matched_slip = np.where(matched, est_slip[np.maximum(idx, 0)], np.nan) if len(est_slip) else \
-        np.full(len(truth_slip), np.nan)
+
+    def at_match(values: np.ndarray, fill: float) -> np.ndarray:
+        """The estimate matched to each truth sample, ``fill`` where none is."""
+        if not len(values):
+            return np.full(len(truth_class), fill)
+        return np.where(matched, values[np.maximum(idx, 0)], fill)
+
+    e_cls = at_match(est_class, -1)
+    matched_slip = at_match(est_slip, np.nan)
     valid_truth = truth_class >= 0
     counts, percent = confusion_matrix(e_cls, truth_class)
     n_truth = counts.sum(axis=0)
@@ -216,10 +221,8 @@ def evaluate_slip(est_stamp_ns: np.ndarray, est_slip: np.ndarray, est_class: np.
     scored = covered & np.isfinite(matched_slip) & np.isfinite(truth_slip)
     err = np.abs(matched_slip - truth_slip)[scored]
     mae = float(err.mean()) if err.size else float('nan')
-    std = np.where(matched, est_std[np.maximum(idx, 0)], np.nan) if len(est_std) else \
-        np.full(len(truth_slip), np.nan)
-    with np.errstate(invalid='ignore'):
-        sigma_ok = scored & np.isfinite(std) & (std > 0.0)
+    std = at_match(est_std, np.nan)
+    sigma_ok = scored & np.isfinite(std) & (std > 0.0)
     z = (matched_slip - truth_slip)[sigma_ok] / std[sigma_ok]
     z2_mean = float(np.mean(z * z)) if z.size else float('nan')
     within = float(np.mean(np.abs(z) <= 3.0)) if z.size else float('nan')
