@@ -73,6 +73,11 @@ _QUIET_AFTER_GAP_S = 4.0
 """After an IMU gap the filter settles its attitude and biases: no body-side step test."""
 _STOP_S = 0.5
 """Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
+_NOISE_MEMORY_S = 5.0
+"""Memory of the measured wheel/INS consistency noise (``aid_noise_var``), s."""
+_NOISE_STEP_MAX_S = 0.5
+"""Longest wheel interval the noise memory counts in full (2-Hz wheels; a gap or a stop counts
+as this)."""
 _ANCHOR_S = 0.5
 """Aided samples before a change whose mean anchors its continuity measurement."""
 CHANGE_LOOKBACK_S = SCALES_S[-1] + _ANCHOR_S + 0.5
@@ -130,6 +135,7 @@ class SlipModel:
         # Prior spread of the step statistic: twice the aid noise per sqrt(s) (a random walk).
         self.step_test = StepTest((2.0 * params.wheel_aid_std_mps) ** 2)
         self.aid_noise_var = 0.0
+        self._noise_t_ns: int | None = None
         self.changes = {'wheel': 0, 'body': 0}
         self.chain = SlipChain(params)
         self._run_ahead = RunAheadCheck()
@@ -357,7 +363,13 @@ class SlipModel:
                                    p.wheel_aid_std_mps ** 2, anchor=True,
                                    take_back_since_ns=take_back)
         # Consistency noise of INS and wheels (vibration, encoder quantisation, pitching).
-        self.aid_noise_var += (0.02 if self.aid_noise_var else 1.0) * (
+        # A running mean over _NOISE_MEMORY_S of wheel time (not of samples: the same memory
+        # at any wheel rate; an interval longer than _NOISE_STEP_MAX_S counts as one).
+        dt_s = (t_ns - self._noise_t_ns) * 1e-9 if self._noise_t_ns is not None else 0.0
+        self._noise_t_ns = t_ns
+        if not 0.0 < dt_s <= _NOISE_STEP_MAX_S:
+            dt_s = _NOISE_STEP_MAX_S
+        self.aid_noise_var += (dt_s / _NOISE_MEMORY_S if self.aid_noise_var else 1.0) * (
             (z - v) ** 2 - self.aid_noise_var)
         a = self._aided
         a.append((t_ns, z, v, v_free, self._aid_accel))

@@ -213,6 +213,28 @@ def test_a_wheel_glitch_is_not_a_slip_change_at_any_wheel_rate(rate_hz):
     assert spin_up.changes == {'wheel': 1, 'body': 0}
 
 
+@pytest.mark.parametrize('rate_hz', [10, 50])
+def test_the_consistency_noise_remembers_seconds_not_samples(rate_hz):
+    """The wheel/INS consistency noise (vibration, quantisation) rises from 5 mm/s to 2 cm/s at
+    30 s on a steady drive: the measured noise, which sets the settle and continuity tests,
+    takes the same time to follow at 10 and 50 Hz (a memory of 50 samples is 5 s at 10 Hz but
+    1 s at 50 Hz)."""
+    dt = 1.0 / rate_hz
+    rng = np.random.default_rng(1)
+    model = SlipModel(Params())
+    t = np.arange(0.0, 60.0, dt)
+    noise = rng.normal(0.0, 1.0, len(t)) * np.where(t < 30.0, 0.005, 0.02)
+    followed_s = None
+    for k, tk in enumerate(t):
+        v = 0.45 + float(noise[k])
+        model.step(int(tk * 1e9), 0.5, v, v, True, False)
+        if tk >= 30.0 and followed_s is None and \
+                model.aid_noise_var > 0.005 ** 2 + 0.63 * (0.02 ** 2 - 0.005 ** 2):
+            followed_s = tk - 30.0
+    assert model.changes == {'wheel': 0, 'body': 0} and model.mode is Mode.TRACK
+    assert followed_s is not None and 2.5 < followed_s < 10.0
+
+
 def test_a_commanded_speed_change_at_constant_slip_is_not_a_slip_change():
     t, start = drive()
     w = 0.5 * start + 0.4 * smooth_step(t, 30.0, 3.0)
