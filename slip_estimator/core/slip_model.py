@@ -76,8 +76,9 @@ _STOP_S = 0.5
 _NOISE_MEMORY_S = 5.0
 """Memory of the measured wheel/INS consistency noise (``aid_noise_var``), s."""
 _NOISE_STEP_MAX_S = 0.5
-"""Longest wheel interval the noise memory counts in full (2-Hz wheels; a gap or a stop counts
-as this)."""
+"""Longest interval since the last tracked wheel sample that the noise memory counts in full
+(2-Hz wheels); a longer one (a gap, a stop, a measurement) counts as this: the first sample
+after it weighs 0.5 s."""
 _ANCHOR_S = 0.5
 """Aided samples before a change whose mean anchors its continuity measurement."""
 CHANGE_LOOKBACK_S = SCALES_S[-1] + _ANCHOR_S + 0.5
