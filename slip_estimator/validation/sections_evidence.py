@@ -86,11 +86,13 @@ def body_side_section(rows: list[dict[str, Any]] | None,
             m = r[key]
             cells.append(_slip_cell(m, 2, '', f'{fmt(m["v_rmse"], 3)} m/s'))
         table.append(cells)
-    mean = {k: np.mean([r[k]['balanced_accuracy'] for r in rows if r['kind'] == 'body'])
-            for k in keys}
-    f1 = {k: np.mean([r[k]['sig_f1'] for r in rows if r['kind'] == 'body']) for k in keys}
-    z2 = {k: np.mean([r[k].get('slip_z2', np.nan) for r in rows if r['kind'] == 'body'])
-          for k in keys}
+    def body_mean(field: str) -> dict[str, float]:
+        """Mean of one figure over the body-side patterns, per configuration (NaN where a
+        saved study predates the figure)."""
+        return {k: np.mean([r[k].get(field, np.nan) for r in rows if r['kind'] == 'body'])
+                for k in keys}
+
+    mean, f1, z2 = (body_mean(f) for f in ('balanced_accuracy', 'sig_f1', 'slip_z2'))
     return ([
         '### The slip model on body-side slip (real IMU)', '',
         ('A rover holds its commanded wheel rate: in soft ground the wheels keep turning and '
