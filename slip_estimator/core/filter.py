@@ -38,7 +38,7 @@ from slip_estimator.core.history import Correction
 from slip_estimator.core.mechanization import mechanize_step
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import Planet
-from slip_estimator.core.state import ATT, BG, N_ERR, NavState, correct
+from slip_estimator.core.state import ATT, BA, BG, N_ERR, NavState, correct
 
 _EYE_15 = np.eye(N_ERR)
 _EYE_15.flags.writeable = False
@@ -107,6 +107,21 @@ class ErrorStateFilter:
     def start(self, state: NavState, P: np.ndarray, g_mps2: float) -> None:
         """Begin from an aligned state with covariance ``P`` (``g_mps2``: gravity there)."""
         self.state, self.P, self.g_mps2 = state, P, g_mps2
+
+    def reopen_levels(self, accel_std_mps2: float) -> None:
+        """A stop begins: its zero velocity will measure the horizontal acceleration error
+        again (tilt times g plus the accelerometer bias), so the drive's knowledge of it is
+        not kept as certain. While driving, the wheel aid taught tilt and bias under held
+        slips whose errors the covariance knows nothing of (tilt NEES 4-13 at the stops of
+        simulated drives, against 2); the north/east tilt and the body x/y accelerometer bias
+        variances are raised to at least ``accel_std_mps2`` of acceleration (tilt: over g;
+        correlations kept, so P stays positive semi-definite; a second call changes
+        nothing), and the stop's ZUPTs level the INS anew before the next start measures the
+        ground."""
+        tilt_var = (accel_std_mps2 / self.g_mps2) ** 2
+        for i, var in ((ATT.start, tilt_var), (ATT.start + 1, tilt_var),
+                       (BA.start, accel_std_mps2 ** 2), (BA.start + 1, accel_std_mps2 ** 2)):
+            self.P[i, i] = max(self.P[i, i], var)
 
     def restart_velocity(self, v_fwd_mps: float,
                          covariance: Callable[[NavState], np.ndarray]) -> None:

@@ -5,7 +5,10 @@ At ``update_rate_hz`` (at a covariance-propagation epoch) the detectors decide (
 IMU window still and wheels stopped; turning: yaw rate above its threshold), then ZUPT + ZARU
 (at rest) or the non-holonomic constraint (moving; vertical only while turning) are applied one
 after the other through the filter's gated update. Each applied update returns the filter's
-:class:`~slip_estimator.core.history.Correction` to the caller, who keeps the history.
+:class:`~slip_estimator.core.history.Correction` to the caller, who keeps the history. A stop
+after driving first reopens the horizontal acceleration error (tilt and accelerometer bias,
+:meth:`~slip_estimator.core.filter.ErrorStateFilter.reopen_levels`), so that its zero
+velocity levels the INS again before the next start measures the ground.
 
 At each wheel sample while moving, the wheel yaw-rate aid (:mod:`slip_estimator.core.yaw_aid`)
 is applied through the same gated update (:meth:`Updater.wheel_yaw_rate`).
@@ -59,6 +62,7 @@ class Updater:
     def reset(self) -> None:
         self.next_update_ns: int | None = None
         self.is_stationary = self.is_turning = False
+        self._moved = False  # driven since the filter started (its first rest is the alignment's)
         self._noise_adopted = False  # the IMU's noise model taken (once the rate was known)
 
     def schedule(self, stamp_ns: int) -> None:
@@ -79,7 +83,13 @@ class Updater:
         flt.last_records = []
         self.next_update_ns = stamp_ns + self._period_ns
         w_mean, n = flt.take_mean_rate()
+        was_stationary = self.is_stationary
         self.is_stationary = stationary.is_stationary(stamp_ns)
+        if self.is_stationary and not was_stationary and self._moved:
+            # A stop after driving levels the INS again; the accelerometer's turn-on bias
+            # uncertainty is the scale of what a drive leaves unknown.
+            flt.reopen_levels(self.params.initial_accel_bias_std)
+        self._moved = self._moved or not self.is_stationary
         self.is_turning = self.turn.is_turning(w_mean - flt.state.b_g, flt.state.C_b_n,
                                                stationary.recent_rim_speed_mps(stamp_ns),
                                                track_width_m)

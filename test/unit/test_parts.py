@@ -84,6 +84,28 @@ def test_vibration_inflates_the_psd_by_the_excess_spread_only():
     assert vibration_psd(S, 0.0, window, 0.01) == S
 
 
+def test_a_stop_reopens_tilt_and_horizontal_accel_bias_to_the_stated_acceleration():
+    """North/east tilt rise to (sigma / g)^2, body x/y accelerometer bias to sigma^2 (a larger
+    variance is kept); heading, the vertical bias, every other state and every correlation are
+    left as they were, P stays positive semi-definite, and a second call changes nothing."""
+    flt = started_filter()
+    rng = np.random.default_rng(3)
+    A = rng.normal(0.0, 3e-4, (N_ERR, N_ERR))
+    flt.P = P0 + A @ A.T  # correlated
+    flt.P[BA.start, BA.start] = 0.1 ** 2  # already larger than sigma^2: kept
+    before = flt.P.copy()
+    flt.reopen_levels(0.049)
+    expected = before.copy()
+    for i in (ATT.start, ATT.start + 1):
+        expected[i, i] = (0.049 / 9.8) ** 2
+    expected[BA.start + 1, BA.start + 1] = 0.049 ** 2
+    assert before[ATT.start, ATT.start] < (0.049 / 9.8) ** 2  # so the test can fail
+    np.testing.assert_array_equal(flt.P, expected)
+    assert np.linalg.eigvalsh(flt.P).min() > 0.0
+    flt.reopen_levels(0.049)
+    np.testing.assert_array_equal(flt.P, expected)
+
+
 def test_update_of_one_velocity_component_is_the_scalar_kalman_update():
     """H picks v_N: gain P / (P + R), posterior P R / (P + R), the velocity moves by the
     gain times the innovation (dx is subtracted from the state)."""
