@@ -5,10 +5,10 @@ At ``update_rate_hz`` (at a covariance-propagation epoch) the detectors decide (
 IMU window still and wheels stopped; turning: yaw rate above its threshold), then ZUPT + ZARU
 (at rest) or the non-holonomic constraint (moving; vertical only while turning) are applied one
 after the other through the filter's gated update. Each applied update returns the filter's
-:class:`~slip_estimator.core.history.Correction` to the caller, who keeps the history. A stop
-after driving first reopens the horizontal acceleration error (tilt and accelerometer bias,
-:meth:`~slip_estimator.core.filter.ErrorStateFilter.reopen_levels`), so that its zero
-velocity levels the INS again before the next start measures the ground.
+:class:`~slip_estimator.core.history.Correction` to the caller, who keeps the history. With the
+wheel aid on, a stop after driving first reopens the horizontal acceleration error (tilt and
+accelerometer bias, :meth:`~slip_estimator.core.filter.ErrorStateFilter.reopen_levels`), so
+that its zero velocity levels the INS again before the next start measures the ground.
 
 At each wheel sample while moving, the wheel yaw-rate aid (:mod:`slip_estimator.core.yaw_aid`)
 is applied through the same gated update (:meth:`Updater.wheel_yaw_rate`).
@@ -56,6 +56,10 @@ class Updater:
         self.turn = TurnDetector(p.turn_rate_threshold_rps)
         self.yaw_aid = WheelYawAid(p, planet)  # survives filter resets, as the track fit
         self._period_ns = int(_NS / p.update_rate_hz)
+        # What a stop re-levels is what the wheel aid taught under held slips; without the aid
+        # (the paper's method, whose covariance ignores the vibration) the stops are left as
+        # the paper has them: its accelerometer biases then run out of bounds (s5t1).
+        self._relevel = p.wheel_aid == 'hold'
         self._counters, self._monitor = counters, monitor
         self.reset()
 
@@ -85,7 +89,7 @@ class Updater:
         w_mean, n = flt.take_mean_rate()
         was_stationary = self.is_stationary
         self.is_stationary = stationary.is_stationary(stamp_ns)
-        if self.is_stationary and not was_stationary and self._moved:
+        if self.is_stationary and not was_stationary and self._moved and self._relevel:
             # A stop after driving levels the INS again; the accelerometer's turn-on bias
             # uncertainty is the scale of what a drive leaves unknown.
             flt.reopen_levels(self.params.initial_accel_bias_std)
