@@ -58,10 +58,15 @@ TEST17RUN_BODY_PATTERNS: tuple[tuple[Window, ...], ...] = (
     ((9.0, 16.0, 0.72), (20.0, 27.0, 0.16), (31.0, 38.0, 0.46), (42.0, 50.0, 0.72)))
 """Body-side window patterns on test17run (positions and levels permuted), for the tests and
 the validation study."""
-TEST17RUN_MIXED_WINDOWS: tuple[tuple[Window, ...], tuple[Window, ...]] = (
-    ((21.0, 28.0, 1.8), (42.0, 50.0, 5.0)), ((10.0, 17.0, 0.72), (32.0, 38.0, 0.46)))
-"""(wheel-side, body-side) windows of the mixed variant: high and extreme slip from wheels
-spinning up, medium and high from the body slowing."""
+TEST17RUN_MIXED_PATTERNS: tuple[tuple[tuple[Window, ...], tuple[Window, ...]], ...] = (
+    (((21.0, 28.0, 1.8), (42.0, 50.0, 5.0)), ((10.0, 17.0, 0.72), (32.0, 38.0, 0.46))),
+    (((10.0, 17.0, 2.5), (32.0, 38.0, 1.4)), ((21.0, 28.0, 0.56), (42.0, 50.0, 0.72))),
+    (((8.0, 15.0, 1.4), (41.0, 49.0, 1.8)), ((19.0, 26.0, 0.46), (30.0, 37.0, 0.72))),
+    (((31.0, 38.0, 5.0), (44.0, 51.0, 2.5)), ((9.0, 16.0, 0.56), (20.0, 27.0, 0.46))))
+"""(wheel-side, body-side) windows of the mixed variants: medium to extreme slip from wheels
+spinning up and medium and high from the body slowing, in four placements. One pattern
+decides little: a change of the model flips single alarms on this log (one pattern moved
+0.66 -> 0.58 while the mean of the four moved 0.55 -> 0.63); judge on the mean."""
 BODY_RAMP_S = 1.0
 """Transition time of an injected body-speed change (a sand patch slows a rover in 0.5-3 s)."""
 TEST17RUN_LAG_S = 0.165

@@ -326,13 +326,13 @@ def imu_speed_scatter(log: Any, params: Params, grid_s: float = 0.1) -> dict[str
 
 def body_side(log: Any, params: dict[str, Params]) -> list[dict[str, Any]]:
     """Each configuration in ``params`` on test17run with the body slowed in windows at the
-    real wheel rates (:data:`effects.TEST17RUN_BODY_PATTERNS`) and with the mixed pattern
+    real wheel rates (:data:`effects.TEST17RUN_BODY_PATTERNS`) and with the mixed patterns
     (core runs, RTK truth minus the injected deficit)."""
-    from slip_estimator.effects import (TEST17RUN_BODY_PATTERNS, TEST17RUN_MIXED_WINDOWS,
+    from slip_estimator.effects import (TEST17RUN_BODY_PATTERNS, TEST17RUN_MIXED_PATTERNS,
                                         score_on_log)
 
     cases = [('body', (), pattern) for pattern in TEST17RUN_BODY_PATTERNS]
-    cases.append(('mixed',) + TEST17RUN_MIXED_WINDOWS)
+    cases += [('mixed', wheel, body) for wheel, body in TEST17RUN_MIXED_PATTERNS]
     out = []
     for kind, wheel, body in cases:
         row: dict[str, Any] = {'kind': kind, 'wheel': wheel, 'body': body}

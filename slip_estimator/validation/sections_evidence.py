@@ -86,13 +86,15 @@ def body_side_section(rows: list[dict[str, Any]] | None,
             m = r[key]
             cells.append(_slip_cell(m, 2, '', f'{fmt(m["v_rmse"], 3)} m/s'))
         table.append(cells)
-    def body_mean(field: str) -> dict[str, float]:
-        """Mean of one figure over the body-side patterns, per configuration (NaN where a
+    def pattern_mean(field: str, kind: str = 'body') -> dict[str, float]:
+        """Mean of one figure over the patterns of one kind, per configuration (NaN where a
         saved study predates the figure)."""
-        return {k: np.mean([r[k].get(field, np.nan) for r in rows if r['kind'] == 'body'])
+        return {k: np.mean([r[k].get(field, np.nan) for r in rows if r['kind'] == kind])
                 for k in keys}
 
-    mean, f1, z2 = (body_mean(f) for f in ('balanced_accuracy', 'sig_f1', 'slip_z2'))
+    mean, f1, z2 = (pattern_mean(f) for f in ('balanced_accuracy', 'sig_f1', 'slip_z2'))
+    mixed, mixed_f1 = (pattern_mean(f, 'mixed') for f in ('balanced_accuracy', 'sig_f1'))
+    n_mixed = sum(r['kind'] == 'mixed' for r in rows)
     return ([
         '### The slip model on body-side slip (real IMU)', '',
         ('A rover holds its commanded wheel rate: in soft ground the wheels keep turning and '
@@ -109,7 +111,11 @@ def body_side_section(rows: list[dict[str, Any]] | None,
                 + ', '.join(f'{k} {fmt(mean[k], 2)}' for k in keys) + '; F1 '
                 + ', '.join(f'{k} {fmt(f1[k], 2)}' for k in keys) + '; mean z^2 of the '
                 'published slip sigma against the truth (1 when the sigma is honest) '
-                + ', '.join(f'{k} {fmt(z2[k], 1)}' for k in keys) + '.'), '',
+                + ', '.join(f'{k} {fmt(z2[k], 1)}' for k in keys) + '.'
+                + (f' Mean over the {n_mixed} mixed patterns: balanced accuracy '
+                   + ', '.join(f'{k} {fmt(mixed[k], 2)}' for k in keys) + '; F1 '
+                   + ', '.join(f'{k} {fmt(mixed_f1[k], 2)}' for k in keys) + '.'
+                   if n_mixed else '')), '',
            _imu_scatter_text(scatter), ''])
 
 

@@ -215,11 +215,26 @@ def test_real_log_body_side_slip_is_read():
 
 
 def test_real_log_mixed_slip_is_read():
-    from slip_estimator.effects import TEST17RUN_MIXED_WINDOWS
+    from slip_estimator.effects import TEST17RUN_MIXED_PATTERNS
 
-    wheel, body = TEST17RUN_MIXED_WINDOWS
+    wheel, body = TEST17RUN_MIXED_PATTERNS[0]
     r = score(Effects(), wheel, body_windows=body).slip
     assert r.balanced_accuracy >= 0.55 and r.significant_f1 >= 0.65
+
+
+def test_the_mixed_patterns_place_every_window_inside_the_drive_apart_and_off_class_bounds():
+    """Windows inside test17run's motion (5.4-54.6 s) with 1 s to spare, no two overlapping,
+    every injected level away from a class bound (log slip ~0.03: wheel factor f gives
+    1 - 0.97 / f, body factor m gives 1 - 0.97 m)."""
+    from slip_estimator.effects import TEST17RUN_MIXED_PATTERNS
+
+    assert len(TEST17RUN_MIXED_PATTERNS) >= 4
+    for wheel, body in TEST17RUN_MIXED_PATTERNS:
+        windows = sorted(wheel + body)
+        assert windows[0][0] >= 6.4 and windows[-1][1] <= 53.6
+        assert all(a[1] < b[0] for a, b in zip(windows, windows[1:]))
+        levels = [1.0 - 0.97 / f for _, _, f in wheel] + [1.0 - 0.97 * m for _, _, m in body]
+        assert all(min(abs(s - b) for b in (0.2, 0.4, 0.7)) > 0.05 for s in levels), levels
 
 
 def test_history_follows_corrections_for_delayed_wheel_samples():
