@@ -246,13 +246,15 @@ class SlipEstimator:
             return
         if d.held_slip is not None:
             self.monitor.add_held_slip(d.held_slip)
+        if d.take_back_since_ns is not None:
+            # A change began there: what the aid taught since was the old slip's.
+            undo = -self.history.aid_taught_since(d.take_back_since_ns)
+            self.history.apply(self.filter.correct(undo), aid=True)
+        if not d.update:
+            return
         if not d.anchor:
             self._aid_update(d.z_mps, at.v_fwd_mps, d.var_mps2, excluded=not d.repair)
             return
-        if d.take_back_since_ns is not None:
-            # A body-side change began there: what the aid taught since was the old slip's.
-            undo = -self.history.aid_taught_since(d.take_back_since_ns)
-            self.history.apply(self.filter.correct(undo), aid=True)
         # A known jump of the INS error (a change, or a settled measurement): not gated.
         correction = self.filter.anchor(self.forward.innovation(d.z_mps, at.v_fwd_mps),
                                         self.forward.jacobian(self.filter.state),

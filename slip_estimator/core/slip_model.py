@@ -81,6 +81,11 @@ _NOISE_STEP_MAX_S = 0.5
 after it weighs 0.5 s."""
 _ANCHOR_S = 0.5
 """Aided samples before a change whose mean anchors its continuity measurement."""
+_WHEEL_TAKE_BACK_S = SCALES_S[0]
+"""What the aid taught in this last stretch before a wheel-side change is taken back: a rim
+speed that moves (wheels spinning up, or a new commanded rate while the body slows in sand)
+was aided towards the old slip until the discrepancy lasted ``_WHEEL_CHANGE_S``; on the
+50-Hz robot that taught 0.09 m/s^2 in 0.5 s and the body's half of the change was lost."""
 CHANGE_LOOKBACK_S = SCALES_S[-1] + _ANCHOR_S + 0.5
 """How far before a body-side alarm its onset and continuity anchor can lie, s."""
 
@@ -102,9 +107,11 @@ class AidDecision:
     held_slip : the slip just settled on (for the residual monitor), or None.
     repair : True when the update repairs INS damage (after an IMU gap) rather than holding a
         slip: the free speed then keeps its effect (the step test must see the repaired INS).
-    take_back_since_ns : a body-side change began at this wheel time: the tilt and
-        accelerometer-bias corrections the aid made since were made under the old slip and are
-        taken back before this anchor (:mod:`slip_estimator.core.history`); None: keep them.
+    take_back_since_ns : a change began at this wheel time: the tilt and accelerometer-bias
+        corrections the aid made since were made under the old slip and are taken back first
+        (:mod:`slip_estimator.core.history`); None: keep them.
+    update : False for a take-back alone (a wheel-side change: the measurement that follows
+        starts from the INS as it is); ``z_mps`` and ``var_mps2`` are then unused.
     """
 
     z_mps: float
@@ -113,6 +120,7 @@ class AidDecision:
     held_slip: float | None = None
     repair: bool = False
     take_back_since_ns: int | None = None
+    update: bool = True
 
 
 def speed_ratio(s: float) -> float:
@@ -334,6 +342,9 @@ class SlipModel:
                 anchor = (sum(x[1] for x in a) / len(a), sum(x[2] for x in a) / len(a), False) \
                     if a else None
                 self._start_change(anchor, 'wheel')
+                if self.baseline is not None:  # as for the body side (see there)
+                    return AidDecision(z, 0.0, update=False,
+                                       take_back_since_ns=t_ns - int(_WHEEL_TAKE_BACK_S * _NS))
             return None
         self._change_since_ns = None
         # Body side: a step of the free residual.
@@ -349,13 +360,18 @@ class SlipModel:
             before = [x for x in self._aided if onset_ns - int(_ANCHOR_S * _NS) <= x[0] <= onset_ns]
             before = before or list(self._aided)[:1]
             if before:
-                z0 = sum(x[1] for x in before) / len(before)
-                f0 = sum(x[3] for x in before) / len(before)
-                t0, a0 = before[-1][0], before[-1][4]
+                n = len(before)
+                z0 = sum(x[1] for x in before) / n
+                f0 = sum(x[3] for x in before) / n
+                # The mean free speed is the one at the window's mean time, with the aid's
+                # acceleration there (paired with the window's end instead, the continuity
+                # was off by that acceleration times 0.25 s: 0.04 m/s at 0.17 m/s^2).
+                t0 = sum(x[0] for x in before) / n
+                a0 = sum(x[4] for x in before) / n
                 # Once a stop measured the ground, the aid's tilt and bias corrections since
                 # the onset are the old slip's and are taken back; after a start in motion
                 # they are still levelling the INS (a 30-Hz consumer IMU lost 1-2.5 deg).
-                take_back = t0 if self.baseline is not None else None
+                take_back = before[-1][0] if self.baseline is not None else None
                 self._start_change((z0, f0, True), 'body')
                 # Re-anchor now on continuity (the aid had been pulling the INS back onto the
                 # old slip): the held speed before the onset plus the free speed change since,
