@@ -50,6 +50,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
+from slip_estimator.core.aided_record import AidedRecord, ConsistencyNoise
 from slip_estimator.core.params import Params
 from slip_estimator.core.run_ahead import RunAheadCheck
 from slip_estimator.core.slip import slip_ratio
@@ -73,12 +74,6 @@ _QUIET_AFTER_GAP_S = 4.0
 """After an IMU gap the filter settles its attitude and biases: no body-side step test."""
 _STOP_S = 0.5
 """Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
-_NOISE_MEMORY_S = 5.0
-"""Memory of the measured wheel/INS consistency noise (``aid_noise_var``), s."""
-_NOISE_STEP_MAX_S = 0.5
-"""Longest interval since the last tracked wheel sample that the noise memory counts in full
-(2-Hz wheels); a longer one (a gap, a stop, a measurement) counts as this: the first sample
-after it weighs 0.5 s."""
 _ANCHOR_S = 0.5
 """Aided samples before a change whose mean anchors its continuity measurement."""
 _WHEEL_TAKE_BACK_S = SCALES_S[0]
@@ -143,8 +138,8 @@ class SlipModel:
         self.params = params
         # Prior spread of the step statistic: twice the aid noise per sqrt(s) (a random walk).
         self.step_test = StepTest((2.0 * params.wheel_aid_std_mps) ** 2)
-        self.aid_noise_var = 0.0
-        self._noise_t_ns: int | None = None
+        self._noise = ConsistencyNoise()
+        self._aided = AidedRecord(CHANGE_LOOKBACK_S)
         self.changes = {'wheel': 0, 'body': 0}
         self.chain = SlipChain(params)
         self._run_ahead = RunAheadCheck()
@@ -160,7 +155,7 @@ class SlipModel:
         self._change_since_ns: int | None = None  # a wheel-side discrepancy since then
         self._last_w: float | None = None
         self._recent_w: deque = deque()
-        self._aided: deque = deque()  # (t, z, v, v_free) while tracking
+        self._aided.clear()
         self.step_test.clear()
         self._stopped_since_ns: int | None = None
         self._last_t_ns = 0
@@ -290,6 +285,12 @@ class SlipModel:
         return self.chain.held_speed_var_mps2(w, self.spread_var[-1])
 
     @property
+    def aid_noise_var(self) -> float:
+        """Measured wheel/INS consistency noise (the aid's innovation variance), m^2/s^2
+        (:class:`~slip_estimator.core.aided_record.ConsistencyNoise`)."""
+        return self._noise.var_mps2
+
+    @property
     def baseline(self) -> float | None:
         """The ground's slip measured after the last start from rest (None before one)."""
         return self.chain.baseline
@@ -337,11 +338,8 @@ class SlipModel:
             if self._change_since_ns is None:
                 self._change_since_ns = t_ns
             if t_ns - self._change_since_ns >= int(_WHEEL_CHANGE_S * _NS):
-                a = self._aided
-                a = [x for x in a if x[0] >= t_ns - int(_ANCHOR_S * _NS)]
-                anchor = (sum(x[1] for x in a) / len(a), sum(x[2] for x in a) / len(a), False) \
-                    if a else None
-                self._start_change(anchor, 'wheel')
+                m = self._aided.mean(t_ns - int(_ANCHOR_S * _NS))
+                self._start_change(None if m is None else (m.z_mps, m.v_mps, False), 'wheel')
                 if self.baseline is not None:  # as for the body side (see there)
                     return AidDecision(z, 0.0, update=False,
                                        take_back_since_ns=t_ns - int(_WHEEL_TAKE_BACK_S * _NS))
@@ -357,41 +355,26 @@ class SlipModel:
             # Continuity from before the longest scale: a transition slower than the scale
             # that fired began earlier, while the aid still held the old slip.
             onset_ns = min(onset_ns, t_ns - int(SCALES_S[-1] * _NS))
-            before = [x for x in self._aided if onset_ns - int(_ANCHOR_S * _NS) <= x[0] <= onset_ns]
-            before = before or list(self._aided)[:1]
-            if before:
-                n = len(before)
-                z0 = sum(x[1] for x in before) / n
-                f0 = sum(x[3] for x in before) / n
-                # The mean free speed is the one at the window's mean time, with the aid's
-                # acceleration there (paired with the window's end instead, the continuity
-                # was off by that acceleration times 0.25 s: 0.04 m/s at 0.17 m/s^2).
-                t0 = sum(x[0] for x in before) / n
-                a0 = sum(x[4] for x in before) / n
+            before = self._aided.mean(onset_ns - int(_ANCHOR_S * _NS), onset_ns) \
+                or self._aided.first()
+            if before is not None:
                 # Once a stop measured the ground, the aid's tilt and bias corrections since
                 # the onset are the old slip's and are taken back; after a start in motion
                 # they are still levelling the INS (a 30-Hz consumer IMU lost 1-2.5 deg).
-                take_back = before[-1][0] if self.baseline is not None else None
-                self._start_change((z0, f0, True), 'body')
+                take_back = before.last_ns if self.baseline is not None else None
+                self._start_change((before.z_mps, before.v_free_mps, True), 'body')
                 # Re-anchor now on continuity (the aid had been pulling the INS back onto the
                 # old slip): the held speed before the onset plus the free speed change since,
-                # without the aid corrections made since the onset.
-                return AidDecision(z0 + v_free - f0 + a0 * (t_ns - t0) * 1e-9,
+                # without the aid corrections made since the onset. The mean free speed is the
+                # one at the window's mean time, with the aid's acceleration there (paired with
+                # the window's end, the continuity was off by that acceleration times 0.25 s:
+                # 0.04 m/s at 0.17 m/s^2).
+                return AidDecision(before.z_mps + v_free - before.v_free_mps
+                                   + before.aid_accel_mps2 * (t_ns - before.t_ns) * 1e-9,
                                    p.wheel_aid_std_mps ** 2, anchor=True,
                                    take_back_since_ns=take_back)
-        # Consistency noise of INS and wheels (vibration, encoder quantisation, pitching).
-        # A running mean over _NOISE_MEMORY_S of wheel time (not of samples: the same memory
-        # at any wheel rate; an interval longer than _NOISE_STEP_MAX_S counts as one).
-        dt_s = (t_ns - self._noise_t_ns) * 1e-9 if self._noise_t_ns is not None else 0.0
-        self._noise_t_ns = t_ns
-        if not 0.0 < dt_s <= _NOISE_STEP_MAX_S:
-            dt_s = _NOISE_STEP_MAX_S
-        self.aid_noise_var += (dt_s / _NOISE_MEMORY_S if self.aid_noise_var else 1.0) * (
-            (z - v) ** 2 - self.aid_noise_var)
-        a = self._aided
-        a.append((t_ns, z, v, v_free, self._aid_accel))
-        while a[0][0] < t_ns - int(CHANGE_LOOKBACK_S * _NS):
-            a.popleft()
+        self._noise.add(t_ns, z - v)
+        self._aided.add(t_ns, z, v, v_free, self._aid_accel)
         if not steady:
             # Speeding up or braking, the slip of a skid-steer rover is not the cruise slip
             # held, and the INS is good over the few tenths of a second it takes: no aid.
