@@ -160,12 +160,11 @@ class SlipModel:
         self._aided.clear()
         self.step_test.clear()
         self._stopped_since_ns: int | None = None
-        self._last_t_ns = 0
+        self._last_t_ns, self._aid_accel = 0, 0.0
         self._run_ahead.reset()
-        self._aid_accel = 0.0
         self.chain.reset()
-        self._reanchor = False
-        self._quiet_until_ns = 0
+        self._reanchor, self._quiet_until_ns = False, 0
+        self._carried_var_mps2 = 0.0  # the last hold's, while nothing re-measured the speed
 
     def reset(self, from_rest: bool) -> None:
         """Forget the held slip: a stop (``from_rest``: the next start is ZUPT-anchored) or a
@@ -190,11 +189,13 @@ class SlipModel:
         self._run_ahead.add(t_ns, pitch_rad)
         if not moving:
             stopped_since = self._stopped_since_ns
+            carried = self.held_speed_var_mps2(self._last_w or 0.0)
             self.reset(from_rest=True)
             if abs(w) >= self.params.moving_speed_threshold_mps:
                 return None
             self._stopped_since_ns = t_ns if stopped_since is None else stopped_since
             if t_ns - self._stopped_since_ns < int(_STOP_S * _NS):
+                self._carried_var_mps2 = carried  # until the zero-speed aid below
                 return None
             # Wheels held still: the body is at rest unless it slides, which the gate catches.
             # This anchors the next start even where a vibrating IMU keeps the ZUPT off.
@@ -281,9 +282,10 @@ class SlipModel:
     def held_speed_var_mps2(self, w: float) -> float:
         """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided
         covariance knows nothing of the hold), m^2/s^2 (:meth:`SlipChain.held_speed_var_mps2`);
-        none while measuring or at rest (the free INS carries its own)."""
+        carried through a change's measurement and into a stop until the zero-speed aid (the
+        hold's error stays in the INS; at a stop it is not the body sliding on)."""
         if self.mode is not Mode.TRACK:
-            return 0.0
+            return self._carried_var_mps2
         return self.chain.held_speed_var_mps2(w, self.spread_var[-1])
 
     @property
@@ -387,6 +389,7 @@ class SlipModel:
         return AidDecision(z, p.wheel_aid_std_mps ** 2 * (4.0 if turning else 1.0), repair=quiet)
 
     def _start_change(self, anchor: tuple[float, float, bool] | None, side: str) -> None:
+        self._carried_var_mps2 = self.held_speed_var_mps2(self._last_w or 0.0)
         self._previous, self._anchor = self.slip_hold, anchor
         self.slip_hold, self.mode = None, Mode.MEASURE
         self._measure_since_ns, self._change_since_ns = None, None

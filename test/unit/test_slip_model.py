@@ -333,7 +333,7 @@ def test_ins_excursions_after_a_start_in_motion_do_not_ratchet_into_a_run_ahead(
 def test_the_held_slip_carries_its_own_uncertainty():
     """The filter's covariance, tight under the aid, knows nothing of the hold: an assumed hold
     (joined in motion, nothing measured) adds 0.1 of the rim speed; one measured from a start
-    at rest adds the INS spread of a measurement; while measuring, nothing (the free INS)."""
+    at rest adds the INS spread of a measurement; at rest, nothing."""
     model = SlipModel(Params())
     model.reset(from_rest=False)
     k = 0
@@ -347,6 +347,36 @@ def test_the_held_slip_carries_its_own_uncertainty():
     assert measured.mode is Mode.TRACK
     assert 0.0 < measured.held_speed_var_mps2(0.6) < (0.1 * 0.6) ** 2
     assert SlipModel(Params()).held_speed_var_mps2(0.6) == 0.0  # at rest
+
+
+def test_a_holds_speed_uncertainty_stays_through_a_change_and_into_a_stop():
+    """The hold's speed error does not leave the INS when a change starts a measurement (the
+    free INS starts from it) or when the wheels stop (until the zero-speed aid): its variance
+    is carried. Dropped, a held-slip error of 0.07 m/s at a stop read as the body sliding on
+    with its wheels still ("extreme" for 0.3 s at most stops out of a patch)."""
+    model = SlipModel(Params())
+    model.reset(from_rest=False)  # an assumed hold: 0.1 of the rim speed
+    k = 0
+
+    def step(w: float, v: float, moving: bool = True):
+        nonlocal k
+        d = model.step(int(k * DT_S * 1e9), w, v, v, moving, False)
+        k += 1
+        return d
+
+    while model.mode is not Mode.TRACK and k < 100:
+        step(0.8, 0.8)
+    held = model.held_speed_var_mps2(0.8)
+    assert held == pytest.approx((0.1 * 0.8) ** 2)
+    while model.mode is Mode.TRACK and k < 200:  # wheels spin up, the body keeps its speed
+        step(1.1, 0.8)
+    assert model.mode is Mode.MEASURE and model.changes['wheel'] == 1
+    assert model.held_speed_var_mps2(1.1) >= held
+    step(0.0, 0.05, moving=False)
+    assert model.mode is Mode.REST and model.held_speed_var_mps2(0.0) >= held
+    decisions = [step(0.0, 0.05, moving=False) for _ in range(6)]
+    assert decisions[-1] is not None and decisions[-1].z_mps == 0.0  # the zero-speed aid
+    assert model.held_speed_var_mps2(0.0) == 0.0
 
 
 @pytest.mark.parametrize('walk_mps_rts, limited', [(0.005, False), (0.15, True)])
