@@ -44,7 +44,8 @@ def sim_case(family: str, seed: int, overrides: dict[str, Any]) -> dict[str, Any
     s = score_on_sim(r, sim_params(r).replace(**overrides)).slip
     return {'family': family, 'seed': seed, 'balanced_accuracy': s.balanced_accuracy,
             'sig_f1': s.significant_f1, 'recall': [float(x) for x in s.recall],
-            'slip_z2_mean': s.slip_z2_mean, 'slip_within_3sigma': s.slip_within_3sigma}
+            'slip_z2_mean': s.slip_z2_mean, 'slip_within_3sigma': s.slip_within_3sigma,
+            'alarms_at_rest': int(s.counts[2:, 0].sum())}
 
 
 def real_case(name: str, log_path: str, overrides: dict[str, Any]) -> dict[str, Any]:
@@ -92,7 +93,9 @@ def score_matrix(families: list[str], seeds: list[int], log_path: Path | None,
 def summary_lines(m: dict[str, Any]) -> list[str]:
     """The printed table: per family the mean and worst balanced accuracy, the mean F1, how
     honest the published slip sigma is (median over drives of the mean ``z^2``, 1 when honest;
-    mean share within 3 sigma) and each drive's balanced accuracy; then the real cases."""
+    mean share within 3 sigma), the slip alarms at rest (samples read medium or above where
+    the truth is at rest, summed over the drives) and each drive's balanced accuracy; then the
+    real cases."""
     lines = []
     families = list(dict.fromkeys(r['family'] for r in m['sim']))
     for f in families:
@@ -103,7 +106,8 @@ def summary_lines(m: dict[str, Any]) -> list[str]:
         in3 = [r['slip_within_3sigma'] for r in rows]
         lines.append(f'{f:8s} balanced mean {sum(bal) / len(bal):.3f} min {min(bal):.3f}  '
                      f'F1 mean {sum(f1) / len(f1):.3f}  sigma z2 {z2[len(z2) // 2]:.1f} '
-                     f'in 3 sigma {sum(in3) / len(in3):.2f}  per seed '
+                     f'in 3 sigma {sum(in3) / len(in3):.2f}  at-rest alarms '
+                     f'{sum(r["alarms_at_rest"] for r in rows)}  per seed '
                      + ' '.join(f'{x:.2f}' for x in bal))
     if m['sim']:
         lines.append(f'all {len(m["sim"])} drives: balanced mean '

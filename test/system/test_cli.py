@@ -35,8 +35,9 @@ def test_node_help_does_not_start_the_node(capsys):
 
 def test_accuracy_scores_a_drive_and_says_what_it_skipped(tmp_path, capsys):
     """One drive of the matrix through the core: the fixed short drive keeps its level (the
-    test fails when the slip model loses it), and a missing real log is one line, not a
-    traceback."""
+    test fails when the slip model loses it) and its slip alarms at rest stay few (7 samples
+    before the hold's speed variance was carried into the stops, 2 now: the ratio's last
+    samples before the wheels stop), and a missing real log is one line, not a traceback."""
     import json
 
     out_json = tmp_path / 'acc.json'
@@ -47,6 +48,7 @@ def test_accuracy_scores_a_drive_and_says_what_it_skipped(tmp_path, capsys):
     m = json.loads(out_json.read_text())
     assert [r['seed'] for r in m['sim']] == [0] and not m['real']
     assert m['sim'][0]['balanced_accuracy'] >= 0.9
+    assert m['sim'][0]['alarms_at_rest'] <= 3 and 'at-rest alarms' in out
 
 
 def test_accuracy_bad_inputs_one_line(capsys):
