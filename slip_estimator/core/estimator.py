@@ -23,7 +23,8 @@ from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint, Wheel
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, LocalEnu
-from slip_estimator.core.slip_model import CHANGE_LOOKBACK_S, AidDecision
+from slip_estimator.core.aid_decision import AidDecision
+from slip_estimator.core.slip_model import CHANGE_LOOKBACK_S
 from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor
 from slip_estimator.core.timing import WheelTimingMonitor

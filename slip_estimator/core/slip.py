@@ -25,6 +25,11 @@ def slip_ratio(v_body_mps: float, v_rim_mps: float) -> float:
     return 0.0
 
 
+def speed_ratio(s: float) -> float:
+    """``g(s) = v / (r w)`` of a slip ratio (eq. 1 solved for the body speed)."""
+    return 1.0 - s if s >= 0.0 else 1.0 / (1.0 + s)
+
+
 def slip_ratio_std(v_body_mps: float, v_rim_mps: float, var_body: float, var_rim: float) -> float:
     """1-sigma of s by first-order propagation of the body-speed and rim-speed variances."""
     v, w = abs(v_body_mps), abs(v_rim_mps)

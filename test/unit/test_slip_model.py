@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from slip_estimator.core.params import Params
-from slip_estimator.core.slip_model import CHANGE_LOOKBACK_S, Mode, SlipModel, speed_ratio
+from slip_estimator.core.slip import speed_ratio
+from slip_estimator.core.slip_model import CHANGE_LOOKBACK_S, Mode, SlipModel
 from slip_estimator.core.step_test import SCALES_S
 
 DT_S = 0.1
