@@ -34,6 +34,20 @@ class AidedMean(NamedTuple):
     """time of the window's last sample, ns"""
 
 
+class Anchor(NamedTuple):
+    """What a change's measurement continues from: the held model's speed before it and the
+    INS speed then, the filter's or, with ``aid_accel_mps2``, the free one (whose change is
+    taken with that acceleration, as the step test takes it)."""
+
+    z_mps: float
+    v_mps: float
+    body: bool
+    """a body-side alarm (the velocity was re-anchored at once)"""
+    aid_accel_mps2: float | None = None
+    t_ns: float = 0.0
+    """when ``v_mps`` was, ns"""
+
+
 class AidedRecord:
     """The aided samples ``(t, z, v, v_free, aid_accel)`` of the last ``horizon_s`` while a
     slip is held; cleared by a change, a stop or an IMU gap."""

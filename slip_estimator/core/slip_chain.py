@@ -32,6 +32,12 @@ _ASSUMED_SLIP_STD = 0.1
 """1-sigma of a slip nothing measured (a start in motion, before a stop): half the low class."""
 
 
+def coarse_ins(spread_var: float, w: float) -> bool:
+    """True when the INS speed over a measuring span (``spread_var``, m^2/s^2) scatters by
+    more than ``_COARSE_INS_FRACTION`` of the rim speed ``w``."""
+    return math.sqrt(spread_var) > _COARSE_INS_FRACTION * abs(w)
+
+
 class SlipChain:
     """The held slip's provenance: the ground's baseline, the chain's variance since the last
     anchor, and whether the hold rests on an assumption (see the module docstring)."""
@@ -62,7 +68,7 @@ class SlipChain:
         if unmeasured:
             self.assumed = True
         baseline = self.baseline
-        if baseline is None and math.sqrt(spread_var) > _COARSE_INS_FRACTION * abs(w):
+        if baseline is None and coarse_ins(spread_var, w):
             # A start in motion with an INS too coarse to place a slip within the low class:
             # no stop measured the ground yet, zero slip (the wheels' speed) is the assumed
             # baseline, and a change measured from there is kept only beyond the chain's

@@ -52,11 +52,11 @@ import math
 from collections import deque
 
 from slip_estimator.core.aid_decision import AidDecision
-from slip_estimator.core.aided_record import AidedRecord, ConsistencyNoise
+from slip_estimator.core.aided_record import AidedRecord, Anchor, ConsistencyNoise
 from slip_estimator.core.params import Params
 from slip_estimator.core.run_ahead import RunAheadCheck
 from slip_estimator.core.slip import slip_ratio, speed_ratio
-from slip_estimator.core.slip_chain import SlipChain
+from slip_estimator.core.slip_chain import SlipChain, coarse_ins
 from slip_estimator.core.step_test import SCALES_S, StepTest
 
 _NS = 1_000_000_000
@@ -119,7 +119,7 @@ class SlipModel:
         self.mode = Mode.REST
         self.slip_hold: float | None = None
         self._previous: float | None = None
-        self._anchor: tuple[float, float, bool] | None = None  # (model v, INS v, free INS?)
+        self._anchor: Anchor | None = None
         self._measure_since_ns: int | None = None
         self._vals: list[tuple[float, float, float, float, int]] = []
         self._change_since_ns: int | None = None  # a wheel-side discrepancy since then
@@ -195,7 +195,7 @@ class SlipModel:
         vals.append((slip_ratio(v, w), v, w, v_free, t_ns))
         # After a body-side alarm the rest of the transition must be measured through (the
         # alarm comes mid-transition): once trimmed, the rest spans the measuring time again.
-        body = self._anchor is not None and self._anchor[2]
+        body = self._anchor is not None and self._anchor.body
         if t_ns - (vals[0][4] if body else self._measure_since_ns) < int(p.slip_measure_s * _NS):
             return None
         half = len(vals) // 2
@@ -220,27 +220,36 @@ class SlipModel:
         """The slip a finished measurement settles on.
 
         From rest (ZUPT-anchored) or after a recovery: the median INS slip. After a wheel-side
-        change: velocity continuity from the held model before it, plus the INS speed change
-        across it, a change within ``slip_continuity_sigma`` of the measured aid noise taken as
-        none. After a body-side change: the INS speed since the alarm's re-anchor (continuity
-        from the free speed, whose onset the aid had already pulled at). What it is held as
+        change: velocity continuity from the held model before the rim began to move, plus the
+        INS speed change since (the free INS with the aid's acceleration then; the aided one if
+        the INS is coarse): within ``slip_continuity_sigma`` of its spread over that span, the
+        body kept its speed, unless the rim's own change (a commanded rate) is closer. After a
+        body-side change: the INS speed since the alarm's re-anchor (continuity from the free
+        speed, whose onset the aid had already pulled at). What it is held as
         (baseline, false alarm, run-ahead): :class:`~slip_estimator.core.slip_chain.SlipChain`.
         """
         p = self.params
         vals = self._vals
         if self._anchor is None:
             measured = sorted(x[0] for x in vals)[len(vals) // 2]
-        elif self._anchor[2]:
+        elif self._anchor.body:
             # Body side: the velocity was re-anchored on continuity at the alarm; the INS has
             # run free since (no aid), so its mean speed is the measurement.
             measured = slip_ratio(sum(x[1] for x in vals) / len(vals),
                                   sum(x[2] for x in vals) / len(vals))
         else:
-            z_before, v_before, _ = self._anchor
-            dv = sum(x[1] for x in vals) / len(vals) - v_before
-            if abs(dv) < p.slip_continuity_sigma * math.sqrt(self.aid_noise_var):
+            a, n = self._anchor, len(vals)
+            span_s = (sum(x[4] for x in vals) / n - a.t_ns) * 1e-9
+            free = a.aid_accel_mps2 is not None
+            dv = sum(x[3 if free else 1] for x in vals) / n - a.v_mps \
+                + (a.aid_accel_mps2 * span_s if free else 0.0)
+            w_mean = sum(x[2] for x in vals) / n
+            followed = speed_ratio(self._previous) * w_mean - a.z_mps  # at the old slip
+            noise_var = max(self.aid_noise_var, self.spread_var[-1] * span_s / SCALES_S[-1])
+            if abs(dv) < p.slip_continuity_sigma * math.sqrt(noise_var) and \
+                    abs(dv) < abs(dv - followed):
                 dv = 0.0
-            measured = slip_ratio(z_before + dv, sum(x[2] for x in vals) / len(vals))
+            measured = slip_ratio(a.z_mps + dv, w_mean)
         from_rest, unmeasured = self._from_rest, self._anchor is None and not self._from_rest
         self._anchor, self._from_rest = None, False
         return self.chain.settle(
@@ -310,8 +319,17 @@ class SlipModel:
             if self._change_since_ns is None:
                 self._change_since_ns = t_ns
             if t_ns - self._change_since_ns >= int(_WHEEL_CHANGE_S * _NS):
-                m = self._aided.mean(t_ns - int(_ANCHOR_S * _NS))
-                self._start_change(None if m is None else (m.z_mps, m.v_mps, False), 'wheel')
+                # Continuity from before the rim began to move (the last sample within 10 %
+                # of the rim memory's largest change from now): on a ramp of the rim the aid
+                # pulled the INS along with the old slip until the discrepancy showed.
+                dev = max(abs(w - wk) for _, wk in self._recent_w)
+                onset_ns = max(tk for tk, wk in self._recent_w if abs(w - wk) >= 0.9 * dev)
+                m = self._aided.mean(onset_ns - int(_ANCHOR_S * _NS), onset_ns) \
+                    or self._aided.first()
+                coarse = coarse_ins(self.spread_var[-1], w)  # (a consumer IMU: aided speed)
+                self._start_change(None if m is None else Anchor(
+                    m.z_mps, m.v_mps if coarse else m.v_free_mps, False,
+                    None if coarse else m.aid_accel_mps2, m.t_ns), 'wheel')
                 if self.baseline is not None:  # as for the body side (see there)
                     return AidDecision(z, 0.0, update=False,
                                        take_back_since_ns=t_ns - int(_WHEEL_TAKE_BACK_S * _NS))
@@ -334,7 +352,7 @@ class SlipModel:
                 # the onset are the old slip's and are taken back; after a start in motion
                 # they are still levelling the INS (a 30-Hz consumer IMU lost 1-2.5 deg).
                 take_back = before.last_ns if self.baseline is not None else None
-                self._start_change((before.z_mps, before.v_free_mps, True), 'body')
+                self._start_change(Anchor(before.z_mps, before.v_free_mps, True), 'body')
                 # Re-anchor now on continuity (the aid had been pulling the INS back onto the
                 # old slip): the held speed before the onset plus the free speed change since,
                 # without the aid corrections made since the onset. The mean free speed is the
@@ -356,7 +374,7 @@ class SlipModel:
         # Turning, the wheels also skid sideways: the held slip is a looser constraint.
         return AidDecision(z, p.wheel_aid_std_mps ** 2 * (4.0 if turning else 1.0), repair=quiet)
 
-    def _start_change(self, anchor: tuple[float, float, bool] | None, side: str) -> None:
+    def _start_change(self, anchor: Anchor | None, side: str) -> None:
         self._carried_var_mps2 = self.held_speed_var_mps2(self._last_w or 0.0)
         self._previous, self._anchor = self.slip_hold, anchor
         self.slip_hold, self.mode = None, Mode.MEASURE
