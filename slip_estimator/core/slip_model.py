@@ -74,7 +74,7 @@ _RIM_MEMORY_S = 2.0
 """A wheel-side change needs the rim speed to have moved within this long."""
 _QUIET_AFTER_GAP_S = 4.0
 """After an IMU gap the filter settles its attitude and biases: no body-side step test."""
-_STOP_S = 0.5
+STOP_S = 0.5
 """Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
 _ANCHOR_S = 0.5
 """Aided samples before a change whose mean anchors its continuity measurement."""
@@ -162,7 +162,7 @@ class SlipModel:
             if abs(w) >= self.params.moving_speed_threshold_mps:
                 return None
             self._stopped_since_ns = t_ns if stopped_since is None else stopped_since
-            if t_ns - self._stopped_since_ns < int(_STOP_S * _NS):
+            if t_ns - self._stopped_since_ns < int(STOP_S * _NS):
                 self._carried_var_mps2 = carried  # until the zero-speed aid below
                 return None
             # Wheels held still: the body is at rest unless it slides, which the gate catches.

@@ -494,3 +494,20 @@ def test_wheel_yaw_aid_lets_go_while_wheels_and_gyro_disagree_persistently():
             R.append(c.R[0, 0])
     assert R[55] > 3.0 * R[5]  # after 4.5 s of disagreement (the ground share 10x)
     assert R[-1] == pytest.approx(R[5], rel=0.2)  # 4 s after they agree again
+
+
+def test_wheels_that_just_stopped_hold_the_body_for_the_stop_time():
+    """The rim speed falls below the moving threshold: for STOP_S the body is taken to stop
+    with the wheels (an INS speed left from a held slip is not a slide), then a body still
+    moving reads as slip again (a slide that lasts, or a failed encoder); moving wheels end
+    it."""
+    aid = WheelAid(Params())
+    ns = 1_000_000_000
+    assert not aid.stopping(WheelSample(0, 0.3))
+    assert aid.stopping(WheelSample(ns, 0.01))
+    assert aid.stopping(WheelSample(ns + 4 * ns // 10, 0.0))
+    assert not aid.stopping(WheelSample(ns + 5 * ns // 10, 0.0))
+    assert not aid.stopping(WheelSample(2 * ns, 0.3)) and aid.stopping(WheelSample(3 * ns, 0.0))
+    sliding = slip_estimate(WheelSample(ns, 0.0), 0.1, 0.0, 1e-4, Params(), False, 1.0)
+    stopping = slip_estimate(WheelSample(ns, 0.0), 0.1, 0.0, 1e-4, Params(), True, 1.0)
+    assert sliding.slip_class == 4 and stopping.slip_class == 0
