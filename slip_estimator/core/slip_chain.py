@@ -55,7 +55,7 @@ class SlipChain:
 
     def settle(self, measured: float, previous: float | None, w: float, spread_var: float,
                wheel_change_mps: float, from_rest: bool, unmeasured: bool,
-               implausible_run_ahead: bool, carried_within_mps: float | None = None) -> float:
+               implausible_run_ahead: bool) -> float:
         """The slip to hold after a measurement of ``measured`` at rim speed ``w``.
 
         previous : the hold before the change (None after a start).
@@ -64,9 +64,6 @@ class SlipChain:
         from_rest : the measurement started from a ZUPT-anchored stop (a new baseline).
         unmeasured : the INS was re-initialised from the rim (zero slip assumed).
         implausible_run_ahead : a run-ahead no slope explains was measured.
-        carried_within_mps : the held speed was carried over a wheel-side change (the INS saw
-            no body-speed change beyond this, m/s): no INS interval adds to the chain, and a
-            return to the baseline needs no larger body-speed change than that.
         """
         p = self.params
         if unmeasured:
@@ -81,9 +78,7 @@ class SlipChain:
         # Within this speed of the previous hold or of the baseline a measurement is that
         # value: the wheel-side threshold, or less where the INS over a measurement's span is
         # better than that (a good IMU resolves smaller slip differences).
-        carried = carried_within_mps is not None
-        h = 0.0 if carried else min(wheel_change_mps,
-                                    p.slip_continuity_sigma * math.sqrt(spread_var))
+        h = min(wheel_change_mps, p.slip_continuity_sigma * math.sqrt(spread_var))
         if implausible_run_ahead:
             # Back to the ground's baseline (none yet after a start in motion: the wheels').
             measured = baseline if baseline is not None else 0.0
@@ -94,13 +89,12 @@ class SlipChain:
         # Each change measured from the held model before it adds its INS error to the
         # model's: the chain's spread since the last anchor (a start from rest, or a return to
         # the baseline) is how far from the baseline a measurement may still be that ground.
-        self.chain_var += 0.0 if carried else spread_var
+        self.chain_var += spread_var
         if previous is not None and abs(measured - previous) * abs(w) < h:
             return previous  # a false alarm: the INS confirms the held slip
-        snap_mps = max(h, p.slip_continuity_sigma * math.sqrt(self.chain_var))
         if (baseline is not None and p.slip_baseline == 'snap'
                 and abs(measured - baseline) * abs(w)
-                < (min(snap_mps, carried_within_mps) if carried else snap_mps)):
+                < max(h, p.slip_continuity_sigma * math.sqrt(self.chain_var))):
             # Back on ordinary ground: the slip measured after the last start, anchored on the
             # zero velocity at rest, is more accurate than a chain of INS intervals.
             self.chain_var = 0.0
