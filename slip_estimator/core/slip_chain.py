@@ -2,9 +2,8 @@
 
 A slip is measured from rest (anchored on the stop's zero velocity) or as a change from the
 held slip before it. Each change adds the INS error over its measuring span (the step test's
-learned 2.5-s spread; none where the held speed is carried over a wheel-side change) to the
-chain, so the held slip grows less certain from one change to the next until a stop or a
-return to the ground measured after the last start:
+learned 2.5-s spread) to the chain, so the held slip grows less certain from one change to
+the next until a stop or a return to the ground measured after the last start:
 
 * **baseline.** The first slip after a start from rest is the ground's; a later measurement
   within the chain's spread of it is that ground again (``slip_baseline = 'snap'``), which

@@ -230,7 +230,6 @@ class SlipModel:
         """
         p = self.params
         vals = self._vals
-        spread = self.spread_var[-1]
         if self._anchor is None:
             measured = sorted(x[0] for x in vals)[len(vals) // 2]
         elif self._anchor.body:
@@ -249,12 +248,12 @@ class SlipModel:
             noise_var = max(self.aid_noise_var, self.spread_var[-1] * span_s / SCALES_S[-1])
             if abs(dv) < p.slip_continuity_sigma * math.sqrt(noise_var) and \
                     abs(dv) < abs(dv - followed):
-                dv, spread = 0.0, 0.0
+                dv = 0.0
             measured = slip_ratio(a.z_mps + dv, w_mean)
         from_rest, unmeasured = self._from_rest, self._anchor is None and not self._from_rest
         self._anchor, self._from_rest = None, False
         return self.chain.settle(
-            measured, self._previous, w, spread, self.wheel_change_mps(w),
+            measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
             from_rest, unmeasured, not from_rest and self._run_ahead.implausible(measured))
 
     def held_speed_var_mps2(self, w: float) -> float:
