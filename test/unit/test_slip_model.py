@@ -50,7 +50,7 @@ def run(w_mps: np.ndarray, v_true_mps: np.ndarray, seed: int = 0, walk_mps_rts: 
     for k, (w, v) in enumerate(zip(w_mps, v_true_mps)):
         if k:
             v_est += v_true_mps[k] - v_true_mps[k - 1] + err[k] - err[k - 1]  # the INS
-        moving = abs(w) >= 0.02 or abs(v_est) >= 0.02
+        moving = abs(w) >= 0.02  # as WheelAid.decide: the rim above the moving threshold
         pitch = 0.0 if pitch_rad is None else float(pitch_rad[k])
         d = model.step(int(k * dt_s * 1e9), float(w), v_est, float(v_free[k]), moving, False,
                        pitch, aid_accel_mps2)
