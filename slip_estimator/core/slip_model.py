@@ -155,14 +155,15 @@ class SlipModel:
         self._last_t_ns = t_ns
         self._aid_accel = aid_accel_mps2
         self._run_ahead.add(t_ns, pitch_rad)
+        stopping = self.stopping(t_ns, w)
         if not moving:
             stopped_since = self._stopped_since_ns
             carried = self.held_speed_var_mps2(self._last_w or 0.0)
             self.reset(from_rest=True)
-            if abs(w) >= self.params.moving_speed_threshold_mps:
+            self._stopped_since_ns = stopped_since
+            if stopped_since is None:  # the rim is above the moving threshold
                 return None
-            self._stopped_since_ns = t_ns if stopped_since is None else stopped_since
-            if t_ns - self._stopped_since_ns < int(STOP_S * _NS):
+            if stopping:
                 self._carried_var_mps2 = carried  # until the zero-speed aid below
                 return None
             # Wheels held still: the body is at rest unless it slides, which the gate catches.
@@ -179,6 +180,17 @@ class SlipModel:
             self.mode = Mode.MEASURE
             return self._measure(t_ns, w, v, v_free, steady, turning)
         return self._track(t_ns, w, v, v_free, steady, turning)
+
+    def stopping(self, t_ns: int, w: float) -> bool:
+        """The rim speed ``w`` fell below the moving threshold less than ``STOP_S`` ago (from
+        then on still wheels are a stop: a zero-speed aid); repeated calls for one sample are
+        harmless."""
+        if abs(w) >= self.params.moving_speed_threshold_mps:
+            self._stopped_since_ns = None
+            return False
+        if self._stopped_since_ns is None:
+            self._stopped_since_ns = t_ns
+        return t_ns - self._stopped_since_ns < int(STOP_S * _NS)
 
     # ------------------------------------------------------------------ measuring
     def _measure(self, t_ns: int, w: float, v: float, v_free: float, steady: bool,

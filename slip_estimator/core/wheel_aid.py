@@ -17,7 +17,7 @@ import numpy as np
 from slip_estimator.core.history import HistoryPoint
 from slip_estimator.core.params import Params
 from slip_estimator.core.aid_decision import AidDecision
-from slip_estimator.core.slip_model import STOP_S, SlipModel
+from slip_estimator.core.slip_model import SlipModel
 from slip_estimator.core.types import SlipEstimate, WheelSample
 
 _RECOVERY_SLIP_STD = 0.1  # zero slip assumed while recovering: 10 % of the rim speed, 1-sigma
@@ -32,7 +32,6 @@ class WheelAid:
         self._moving_speed_mps = own.moving_speed_threshold_mps
         self._aid_std_mps = own.wheel_aid_std_mps
         self.slip_model = SlipModel(params)
-        self._still_since_ns: int | None = None
 
     def stopping(self, wheel: WheelSample) -> bool:
         """The wheels stopped less than ``STOP_S`` ago (in any aid mode). The body stops with
@@ -40,13 +39,9 @@ class WheelAid:
         (friction decelerates it at 2 m/s^2 or more), and after ``STOP_S`` the slip model takes
         the body to be at rest. A forward speed the INS still shows until then is its own
         error (a held slip's, a measurement's), not a slide: the slip is published as not
-        moving. A slide that lasts, or a failed encoder, reads as slip from then on."""
-        if abs(wheel.rim_speed_mps) >= self._moving_speed_mps:
-            self._still_since_ns = None
-            return False
-        if self._still_since_ns is None:
-            self._still_since_ns = wheel.stamp_ns
-        return wheel.stamp_ns - self._still_since_ns < int(STOP_S * 1e9)
+        moving. A slide that lasts, or a failed encoder, reads as slip from then on (the slip
+        model's wheels-still time, :meth:`SlipModel.stopping`)."""
+        return self.slip_model.stopping(wheel.stamp_ns, wheel.rim_speed_mps)
 
     def reanchor(self, rim_speed_mps: float, turning: bool) -> AidDecision | None:
         """While recovering: the rim speed itself (zero slip assumed; not in a turn, whose

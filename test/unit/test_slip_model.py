@@ -435,3 +435,16 @@ def test_a_wheel_side_change_is_measured_from_before_the_rim_began_to_move(rate_
     model, v_est = run(w, v, dt_s=dt, aid_gain=0.05)
     assert model.changes['wheel'] == 1 and model.mode is Mode.TRACK
     assert model.slip_hold == pytest.approx(1.0 - 0.455 / 0.5, abs=0.03)
+
+
+def test_every_stop_waits_the_stop_time_before_the_zero_speed_aid():
+    """The wheels-still time starts afresh at each stop (it once kept the first stop's, so
+    from the second stop on the zero-speed aid came at the first still sample)."""
+    model = SlipModel(Params())
+    decisions = [model.step(int(k * DT_S * 1e9), w, v, v, moving, False)
+                 for k, (w, v, moving) in enumerate([(0.0, 0.0, False)] * 10
+                                                     + [(0.5, 0.48, True)] * 100
+                                                     + [(0.0, 0.05, False)] * 7)]
+    second_stop = decisions[110:]
+    assert second_stop[:5] == [None] * 5
+    assert second_stop[5] is not None and second_stop[5].z_mps == 0.0
