@@ -50,8 +50,8 @@ def slip_estimate(wheel: WheelSample, v_body_mps: float, yaw_rate_b_rps: float,
     # because of a few cm/s of velocity uncertainty).
     body_threshold = max(p.moving_speed_threshold_mps, 3.0 * math.sqrt(max(var_v_mps2, 0.0)))
     # ``stationary`` (the stationarity detector: IMU still and wheels stopped; or wheels that
-    # stopped less than STOP_S ago, WheelAid.stopping) says "not moving" outright: a few cm/s
-    # of INS error at a stop must not read as a body sliding off its wheels.
+    # stopped less than STOP_S ago or stop by the stamp, WheelAid.stopping) says "not moving"
+    # outright: a few cm/s of INS error at a stop must not read as a body sliding off its wheels.
     moving = (abs(w) >= p.moving_speed_threshold_mps or abs(v_body_mps) >= body_threshold) \
         and not stationary
     s = slip_ratio(v_body_mps, w) if moving else 0.0

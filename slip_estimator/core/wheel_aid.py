@@ -31,17 +31,35 @@ class WheelAid:
         self._mode = own.wheel_aid
         self._moving_speed_mps = own.moving_speed_threshold_mps
         self._aid_std_mps = own.wheel_aid_std_mps
+        self._latency_s = params.wheel_latency_s
+        self._last: tuple[int, float] | None = None  # (stamp ns, rim speed m/s) of the last sample
         self.slip_model = SlipModel(params)
 
     def stopping(self, wheel: WheelSample) -> bool:
-        """The wheels stopped less than ``STOP_S`` ago (in any aid mode). The body stops with
-        them: a slide on wheels held still ends within a tenth of a second on level ground
-        (friction decelerates it at 2 m/s^2 or more), and after ``STOP_S`` the slip model takes
-        the body to be at rest. A forward speed the INS still shows until then is its own
-        error (a held slip's, a measurement's), not a slide: the slip is published as not
-        moving. A slide that lasts, or a failed encoder, reads as slip from then on (the slip
-        model's wheels-still time, :meth:`SlipModel.stopping`)."""
-        return self.slip_model.stopping(wheel.stamp_ns, wheel.rim_speed_mps)
+        """The wheels stopped less than ``STOP_S`` ago, or stop by the sample's stamp (in any
+        aid mode; call once per wheel sample).
+
+        1. The body stops with the wheels: a slide on wheels held still ends within a tenth of
+           a second on level ground (friction decelerates it at 2 m/s^2 or more), and after
+           ``STOP_S`` the slip model takes the body to be at rest. A forward speed the INS
+           still shows until then is its own error (a held slip's, a measurement's), not a
+           slide: the slip is published as not moving. A slide that lasts, or a failed
+           encoder, reads as slip from then on (:meth:`SlipModel.stopping`).
+        2. The rim speed describes ``wheel_latency_s`` before the stamp (a count difference:
+           the middle of its interval); so does the slip ratio, which changes slowly, but
+           whether the wheels move changes at once. A slowing rim whose trend from the last
+           sample, carried over the latency, falls below the moving threshold has stopped by
+           the stamp: the slip published there is "not moving"."""
+        held = self.slip_model.stopping(wheel.stamp_ns, wheel.rim_speed_mps)
+        last, self._last = self._last, (wheel.stamp_ns, wheel.rim_speed_mps)
+        return held or self._stops_by_stamp(wheel, last)
+
+    def _stops_by_stamp(self, wheel: WheelSample, last: tuple[int, float] | None) -> bool:
+        w = wheel.rim_speed_mps
+        if last is None or wheel.stamp_ns <= last[0] or abs(w) >= abs(last[1]):
+            return False
+        slope_mps_per_s = (w - last[1]) / ((wheel.stamp_ns - last[0]) * 1e-9)
+        return abs(w + slope_mps_per_s * self._latency_s) < self._moving_speed_mps
 
     def reanchor(self, rim_speed_mps: float, turning: bool) -> AidDecision | None:
         """While recovering: the rim speed itself (zero slip assumed; not in a turn, whose

@@ -511,3 +511,20 @@ def test_wheels_that_just_stopped_hold_the_body_for_the_stop_time():
     sliding = slip_estimate(WheelSample(ns, 0.0), 0.1, 0.0, 1e-4, Params(), False, 1.0)
     stopping = slip_estimate(WheelSample(ns, 0.0), 0.1, 0.0, 1e-4, Params(), True, 1.0)
     assert sliding.slip_class == 4 and stopping.slip_class == 0
+
+
+def test_a_rim_slowing_through_the_threshold_by_the_stamp_is_a_stop():
+    """The rim speed describes wheel_latency_s before the stamp (a count difference at 10 Hz:
+    50 ms). Slowing at 1 m/s^2, the last sample above the threshold (0.04 m/s at the middle
+    of its interval) stands for 0 m/s at its stamp (0.02 is the threshold): a stop. The same
+    sample with no latency, a rim that speeds up, or a steady slow rim is still moving."""
+    ns = 100_000_000
+    late = Params().replace(wheel_latency_s=0.05)
+    seen = []
+    for params in (late, Params()):
+        aid = WheelAid(params)
+        seen.append([aid.stopping(WheelSample(k * ns, w)) for k, w in enumerate((0.14, 0.04))])
+    assert seen == [[False, True], [False, False]]
+    for rims in ((0.04, 0.14), (0.03, 0.03, 0.03)):
+        aid = WheelAid(late)
+        assert not any(aid.stopping(WheelSample(k * ns, w)) for k, w in enumerate(rims))
