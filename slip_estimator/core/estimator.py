@@ -239,7 +239,8 @@ class SlipEstimator:
         still = self.wheel_aid.stopping(wheel) or self.updater.is_stationary
         est = outputs.slip_estimate(wheel, at.v_fwd_mps, at.yaw_rate_b_rps, var_v,
                                     self.params, still, self.track.width_m)
-        self._apply_aid(self.wheel_aid.decide(wheel, at, est, st.C_b_n, turning), at)
+        self._apply_aid(self.wheel_aid.decide(wheel, at, est, st.C_b_n, turning,
+                                              self.filter.tilt_std_rad()), at)
         return est
 
     def _apply_aid(self, d: AidDecision | None, at: HistoryPoint) -> None:

@@ -235,6 +235,11 @@ class ErrorStateFilter:
         dx, self.P, _ = kalman.update(self.P, innovation, H, R, consider=self._consider)
         return self.correct(dx)
 
+    def tilt_std_rad(self) -> float:
+        """1-sigma of the attitude's tilt (north and east errors together), rad."""
+        i = ATT.start
+        return math.sqrt(max(float(self.P[i, i] + self.P[i + 1, i + 1]), 0.0))
+
     def variance(self, H: np.ndarray) -> float:
         """``H P H^T`` of a one-row H, from P of the last propagation epoch."""
         return float((H @ self.P @ H.T)[0, 0])

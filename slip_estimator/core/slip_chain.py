@@ -8,7 +8,10 @@ the next until a stop or a return to the ground measured after the last start:
 * **baseline.** The first slip after a start from rest is the ground's; a later measurement
   within the chain's spread of it is that ground again (``slip_baseline = 'snap'``), which
   ends the chain (measured on the real logs: a chain of INS intervals is worse than the
-  ZUPT-anchored start);
+  ZUPT-anchored start). Not on another slope: gravity along it changes the traction the
+  wheels must give, so the same ground slips differently there (a pitch beyond
+  ``run_ahead.PITCH_RAD`` from the baseline's, plus ``_SLOPE_SIGMA`` of the attitude's tilt
+  uncertainty: a consumer IMU's pitch wanders by 2 degrees on level ground);
 * **false alarm.** A measurement within the change threshold of the previous hold is that
   hold (the INS confirms it);
 * **run-ahead.** One that no slope explains (:mod:`slip_estimator.core.run_ahead`) is the INS:
@@ -24,12 +27,15 @@ from __future__ import annotations
 import math
 
 from slip_estimator.core.params import Params
+from slip_estimator.core.run_ahead import PITCH_RAD
 
 _COARSE_INS_FRACTION = 0.15
 """An INS whose speed over a measurement span scatters by more than this fraction of the rim
 speed cannot place a slip within the low class (0.2 wide)."""
 _ASSUMED_SLIP_STD = 0.1
 """1-sigma of a slip nothing measured (a start in motion, before a stop): half the low class."""
+_SLOPE_SIGMA = 2.0
+"""A pitch change beyond ``PITCH_RAD`` plus this many tilt sigmas is another slope."""
 
 
 def coarse_ins(spread_var: float, w: float) -> bool:
@@ -45,6 +51,7 @@ class SlipChain:
     def __init__(self, params: Params) -> None:
         self.params = params
         self.baseline: float | None = None
+        self.baseline_pitch_rad: float | None = None  # the pitch it was measured at
         self.reset()
 
     def reset(self) -> None:
@@ -54,8 +61,10 @@ class SlipChain:
 
     def settle(self, measured: float, previous: float | None, w: float, spread_var: float,
                wheel_change_mps: float, from_rest: bool, unmeasured: bool,
-               implausible_run_ahead: bool) -> float:
-        """The slip to hold after a measurement of ``measured`` at rim speed ``w``.
+               implausible_run_ahead: bool, pitch_rad: float = 0.0,
+               pitch_std_rad: float = 0.0) -> float:
+        """The slip to hold after a measurement of ``measured`` at rim speed ``w`` and pitch
+        ``pitch_rad`` (1-sigma ``pitch_std_rad``).
 
         previous : the hold before the change (None after a start).
         spread_var : the INS's learned speed-change variance over a measuring span, m^2/s^2.
@@ -84,6 +93,7 @@ class SlipChain:
             self.assumed = self.assumed or baseline is None
         if from_rest:
             self.baseline, self.assumed, self.chain_var = measured, False, 0.0
+            self.baseline_pitch_rad = pitch_rad
             return measured
         # Each change measured from the held model before it adds its INS error to the
         # model's: the chain's spread since the last anchor (a start from rest, or a return to
@@ -91,7 +101,10 @@ class SlipChain:
         self.chain_var += spread_var
         if previous is not None and abs(measured - previous) * abs(w) < h:
             return previous  # a false alarm: the INS confirms the held slip
-        if (baseline is not None and p.slip_baseline == 'snap'
+        base_pitch = self.baseline_pitch_rad
+        other_slope = base_pitch is not None and \
+            abs(pitch_rad - base_pitch) > PITCH_RAD + _SLOPE_SIGMA * pitch_std_rad
+        if (baseline is not None and p.slip_baseline == 'snap' and not other_slope
                 and abs(measured - baseline) * abs(w)
                 < max(h, p.slip_continuity_sigma * math.sqrt(self.chain_var))):
             # Back on ordinary ground: the slip measured after the last start, anchored on the

@@ -35,7 +35,7 @@ Modes (:class:`Mode`):
   slip is then held (:mod:`slip_estimator.core.slip_chain`): after a start from rest it is
   the ground's baseline; one within the change threshold of the previous hold is a false
   alarm; with ``slip_baseline = 'snap'`` one within it of the baseline is that ground again
-  (this ends a chain of INS errors from one change to the next, measured on the real logs);
+  unless on another slope (this ends a chain of INS errors, measured on the real logs);
 * ``TRACK``: the held slip turns the rim speed into a forward-speed aid ``g(s_hold) w`` that
   stops the INS drift without assuming zero slip, while the step test watches for the next
   step (no aid while the rim speed changes: encoder lag).
@@ -150,11 +150,11 @@ class SlipModel:
 
     # ------------------------------------------------------------------ the step
     def step(self, t_ns: int, w: float, v: float, v_free: float, moving: bool,
-             turning: bool, pitch_rad: float = 0.0, aid_accel_mps2: float = 0.0
-             ) -> AidDecision | None:
+             turning: bool, pitch_rad: float = 0.0, aid_accel_mps2: float = 0.0,
+             pitch_std_rad: float = 0.0) -> AidDecision | None:
         self._last_t_ns = t_ns
         self._aid_accel = aid_accel_mps2
-        self._run_ahead.add(t_ns, pitch_rad)
+        self._run_ahead.add(t_ns, pitch_rad, pitch_std_rad)
         stopping = self.stopping(t_ns, w)
         if not moving:
             stopped_since = self._stopped_since_ns
@@ -264,9 +264,11 @@ class SlipModel:
             measured = slip_ratio(a.z_mps + dv, w_mean)
         from_rest, unmeasured = self._from_rest, self._anchor is None and not self._from_rest
         self._anchor, self._from_rest = None, False
+        ra = self._run_ahead
         return self.chain.settle(
             measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
-            from_rest, unmeasured, not from_rest and self._run_ahead.implausible(measured))
+            from_rest, unmeasured, not from_rest and ra.implausible(measured), ra.pitch_rad,
+            ra.pitch_std_rad)
 
     def held_speed_var_mps2(self, w: float) -> float:
         """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided

@@ -422,6 +422,23 @@ def test_the_chain_holds_a_measurement_as_baseline_false_alarm_or_new_slip():
     assert chain.assumed and chain.held_speed_var_mps2(0.5, spread) == pytest.approx(0.05 ** 2)
 
 
+def test_a_measurement_on_another_slope_is_not_snapped_to_the_baseline():
+    """The baseline 0.08 was measured on level ground. Down a 5-degree slope the body runs
+    ahead (-0.05, within the chain's spread of the baseline): gravity changed the traction,
+    so it is not that ground. The same reading at 1 degree, or at 5 degrees with a tilt
+    sigma of 2 degrees (a consumer IMU, whose pitch wanders that much on level ground), is."""
+    from slip_estimator.core.slip_chain import SlipChain
+    deg = math.radians(1.0)
+    def held(pitch_deg, pitch_std_deg=0.0):
+        chain = SlipChain(Params())
+        chain.settle(0.08, None, 0.5, 1e-4, 0.05, True, False, False, 0.0)
+        chain.chain_var = 0.05 ** 2  # a chain of changes: the snap radius is 0.1 m/s
+        return chain.settle(-0.05, 0.30, 0.5, 1e-4, 0.05, False, False, False,
+                            -pitch_deg * deg, pitch_std_deg * deg)
+    assert held(5.0) == -0.05
+    assert held(1.0) == 0.08 and held(5.0, 2.0) == 0.08
+
+
 @pytest.mark.parametrize('rate_hz', [10, 50])
 def test_a_wheel_side_change_is_measured_from_before_the_rim_began_to_move(rate_hz):
     """Over a crest the commanded rate falls (0.65 -> 0.5 m/s in 2 s) while the slope's slip
