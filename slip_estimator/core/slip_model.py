@@ -23,19 +23,18 @@ Modes (:class:`Mode`):
 
 * ``REST``: not moving. The ZUPT anchors the velocity; the next start is measured from it;
 * ``MEASURE``: after a start or a detected change the INS runs free (no wheel aid) until the
-  body has settled; a change is anchored on velocity continuity (the held model's speed at the
-  onset plus the INS speed change since) by an update of the aid's variance, which moves the
-  velocity as far as the filter's own velocity variance lets it: 78 % of the way (median) on
-  the real test17run IMU, 10-24 % on the simulated ones, whose aided velocity it trusts more
-  (a full reset measured worse on the real log, README). Until the alarm the aid pulled the
-  INS towards the old slip, and the filter took the pull for tilt and accelerometer bias: the
-  alarm takes those corrections back (``AidDecision.take_back_since_ns``), or the free INS
-  measures the change short (patch entries read 30-40 % low). Not after a start in motion:
-  there the aid is still levelling the INS (a 30-Hz consumer IMU lost 1-2.5 deg). The settled
-  slip is then held (:mod:`slip_estimator.core.slip_chain`): after a start from rest it is
-  the ground's baseline; one within the change threshold of the previous hold is a false
-  alarm; with ``slip_baseline = 'snap'`` one within it of the baseline is that ground again
-  unless on another slope (this ends a chain of INS errors, measured on the real logs);
+  body has settled (:mod:`slip_estimator.core.slip_measurement`). A body-side change is
+  anchored at its alarm on velocity continuity (the held model's speed at the onset plus the
+  INS speed change since) by an update of the aid's variance, which moves the velocity as far
+  as the filter's own velocity variance lets it: 78 % of the way (median) on the real
+  test17run IMU, 10-24 % on the simulated ones (a full reset measured worse on the real log,
+  README). Until the alarm the aid pulled the INS towards the old slip, and the filter took
+  the pull for tilt and accelerometer bias: the alarm takes those corrections back
+  (``AidDecision.take_back_since_ns``), or the free INS measures the change short (patch
+  entries read 30-40 % low). Not after a start in motion: there the aid is still levelling
+  the INS (a 30-Hz consumer IMU lost 1-2.5 deg). The measured slip is then held as
+  :mod:`slip_estimator.core.slip_chain` decides (the ground's baseline, a false alarm, a
+  run-ahead no slope explains);
 * ``TRACK``: the held slip turns the rim speed into a forward-speed aid ``g(s_hold) w`` that
   stops the INS drift without assuming zero slip, while the step test watches for the next
   step (no aid while the rim speed changes: encoder lag).
@@ -49,29 +48,24 @@ from __future__ import annotations
 
 import enum
 import math
-from collections import deque
 
 from slip_estimator.core.aid_decision import AidDecision
 from slip_estimator.core.aided_record import AidedRecord, Anchor, ConsistencyNoise
 from slip_estimator.core.params import Params
+from slip_estimator.core.rim_memory import RimMemory
 from slip_estimator.core.run_ahead import RunAheadCheck
-from slip_estimator.core.slip import slip_ratio, speed_ratio
+from slip_estimator.core.slip import speed_ratio
 from slip_estimator.core.slip_chain import SlipChain, coarse_ins
+from slip_estimator.core.slip_measurement import SlipMeasurement
 from slip_estimator.core.step_test import SCALES_S, StepTest
 
 _NS = 1_000_000_000
-_MEASURE_TIMEOUT_FACTOR = 5.0
-"""After this many ``slip_measure_s`` a measurement settles even if the body still moves."""
 _TURN_THRESHOLD_FACTOR = 1.5
 """The INS is worse in turns (lever arm, skid): the body-side threshold is raised by this."""
-_STEADY_FRACTION = 0.05
-"""Rim speed steady: it moved by less than this fraction (plus 1 cm/s) since the last sample."""
 _WHEEL_CHANGE_S = 0.15
 """A wheel-side discrepancy that lasts this long is a change, not a noisy sample or an encoder
 glitch: the third consecutive sample at 10 Hz, the ninth at 50 Hz (a count of samples would
 take a 0.06-s glitch for a change at 50 Hz)."""
-_RIM_MEMORY_S = 2.0
-"""A wheel-side change needs the rim speed to have moved within this long."""
 _QUIET_AFTER_GAP_S = 4.0
 """After an IMU gap the filter settles its attitude and biases: no body-side step test."""
 STOP_S = 0.5
@@ -113,18 +107,17 @@ class SlipModel:
         self.changes = {'wheel': 0, 'body': 0}
         self.chain = SlipChain(params)
         self._run_ahead = RunAheadCheck()
+        self._rim = RimMemory()
+        self._measurement = SlipMeasurement(params.slip_measure_s)
         self.reset(from_rest=True)  # a new filter starts from rest (or is told otherwise)
 
     def _reset(self) -> None:
         self.mode = Mode.REST
         self.slip_hold: float | None = None
         self._previous: float | None = None
-        self._anchor: Anchor | None = None
-        self._measure_since_ns: int | None = None
-        self._vals: list[tuple[float, float, float, float, int]] = []
+        self._measurement.start(None)
         self._change_since_ns: int | None = None  # a wheel-side discrepancy since then
-        self._last_w: float | None = None
-        self._recent_w: deque = deque()
+        self._rim.clear()
         self._aided.clear()
         self.step_test.clear()
         self._stopped_since_ns: int | None = None
@@ -145,7 +138,7 @@ class SlipModel:
         the step test and a running measurement start afresh (the held slip is kept)."""
         self.step_test.clear()
         self._aided.clear()
-        self._measure_since_ns = None
+        self._measurement.restart()
         self._reanchor = True  # what the INS integrated across the gap is not the body's
 
     # ------------------------------------------------------------------ the step
@@ -158,7 +151,7 @@ class SlipModel:
         stopping = self.stopping(t_ns, w)
         if not moving:
             stopped_since = self._stopped_since_ns
-            carried = self.held_speed_var_mps2(self._last_w or 0.0)
+            carried = self.held_speed_var_mps2(self._rim.last_mps or 0.0)
             self.reset(from_rest=True)
             self._stopped_since_ns = stopped_since
             if stopped_since is None:  # the rim is above the moving threshold
@@ -169,13 +162,7 @@ class SlipModel:
             # Wheels held still: the body is at rest unless it slides, which the gate catches.
             # This anchors the next start even where a vibrating IMU keeps the ZUPT off.
             return AidDecision(0.0, (2.0 * self.params.wheel_aid_std_mps) ** 2)
-        steady = self._last_w is not None and \
-            abs(w - self._last_w) <= _STEADY_FRACTION * abs(w) + 0.01
-        self._last_w = w
-        recent = self._recent_w
-        recent.append((t_ns, w))
-        while recent[0][0] < t_ns - int(_RIM_MEMORY_S * _NS):
-            recent.popleft()
+        steady = self._rim.add(t_ns, w)
         if self.slip_hold is None:
             self.mode = Mode.MEASURE
             return self._measure(t_ns, w, v, v_free, steady, turning)
@@ -195,30 +182,14 @@ class SlipModel:
     # ------------------------------------------------------------------ measuring
     def _measure(self, t_ns: int, w: float, v: float, v_free: float, steady: bool,
                  turning: bool) -> AidDecision | None:
-        """The INS runs free until the body has settled (measured on steady driving only:
-        while the speed changes, the encoder speed, a count difference, lags the body)."""
+        """The INS runs free until the body has settled
+        (:class:`~slip_estimator.core.slip_measurement.SlipMeasurement`); then the measured
+        slip is held as the chain decides and the velocity is anchored on it."""
         p = self.params
         if turning or not steady:
-            self._measure_since_ns = None
+            self._measurement.restart()
             return None
-        if self._measure_since_ns is None:
-            self._measure_since_ns, self._vals = t_ns, []
-        vals = self._vals
-        vals.append((slip_ratio(v, w), v, w, v_free, t_ns))
-        # After a body-side alarm the rest of the transition must be measured through (the
-        # alarm comes mid-transition): once trimmed, the rest spans the measuring time again.
-        body = self._anchor is not None and self._anchor.body
-        if t_ns - (vals[0][4] if body else self._measure_since_ns) < int(p.slip_measure_s * _NS):
-            return None
-        half = len(vals) // 2
-        dv = (sum(x[1] for x in vals[half:]) / (len(vals) - half)
-              - sum(x[1] for x in vals[:half]) / max(half, 1))
-        if abs(dv) > max(0.02, 2.0 * math.sqrt(self.aid_noise_var)) and \
-                t_ns - self._measure_since_ns < int(_MEASURE_TIMEOUT_FACTOR * p.slip_measure_s
-                                                    * _NS):
-            # The body is still speeding up or slowing down (entering or leaving sand):
-            # the slip is not settled yet, measure on.
-            del vals[:half]
+        if not self._measurement.add(t_ns, w, v, v_free, self.aid_noise_var):
             return None
         measured = self._settle(w)
         self.slip_hold, self.mode = measured, Mode.TRACK
@@ -229,41 +200,13 @@ class SlipModel:
                            held_slip=measured)
 
     def _settle(self, w: float) -> float:
-        """The slip a finished measurement settles on.
-
-        From rest (ZUPT-anchored) or after a recovery: the median INS slip. After a wheel-side
-        change: velocity continuity from the held model before the rim began to move, plus the
-        INS speed change since (the free INS with the aid's acceleration then; the aided one if
-        the INS is coarse): within ``slip_continuity_sigma`` of its spread over that span, the
-        body kept its speed, unless the rim's own change (a commanded rate) is closer. After a
-        body-side change: the INS speed since the alarm's re-anchor (continuity from the free
-        speed, whose onset the aid had already pulled at). What it is held as
-        (baseline, false alarm, run-ahead): :class:`~slip_estimator.core.slip_chain.SlipChain`.
-        """
-        p = self.params
-        vals = self._vals
-        if self._anchor is None:
-            measured = sorted(x[0] for x in vals)[len(vals) // 2]
-        elif self._anchor.body:
-            # Body side: the velocity was re-anchored on continuity at the alarm; the INS has
-            # run free since (no aid), so its mean speed is the measurement.
-            measured = slip_ratio(sum(x[1] for x in vals) / len(vals),
-                                  sum(x[2] for x in vals) / len(vals))
-        else:
-            a, n = self._anchor, len(vals)
-            span_s = (sum(x[4] for x in vals) / n - a.t_ns) * 1e-9
-            free = a.aid_accel_mps2 is not None
-            dv = sum(x[3 if free else 1] for x in vals) / n - a.v_mps \
-                + (a.aid_accel_mps2 * span_s if free else 0.0)
-            w_mean = sum(x[2] for x in vals) / n
-            followed = speed_ratio(self._previous) * w_mean - a.z_mps  # at the old slip
-            noise_var = max(self.aid_noise_var, self.spread_var[-1] * span_s / SCALES_S[-1])
-            if abs(dv) < p.slip_continuity_sigma * math.sqrt(noise_var) and \
-                    abs(dv) < abs(dv - followed):
-                dv = 0.0
-            measured = slip_ratio(a.z_mps + dv, w_mean)
-        from_rest, unmeasured = self._from_rest, self._anchor is None and not self._from_rest
-        self._anchor, self._from_rest = None, False
+        """The slip a finished measurement settles on: what it measured, held as the chain
+        decides (baseline, false alarm, run-ahead: :class:`SlipChain`)."""
+        unmeasured = self._measurement.anchor is None and not self._from_rest
+        measured = self._measurement.slip(self._previous, self.params.slip_continuity_sigma,
+                                          self.aid_noise_var, self.spread_var[-1],
+                                          SCALES_S[-1])
+        from_rest, self._from_rest = self._from_rest, False
         ra = self._run_ahead
         return self.chain.settle(
             measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
@@ -299,7 +242,7 @@ class SlipModel:
     @property
     def rim_speed_mps(self) -> float | None:
         """The rim speed of the last moving wheel sample, m/s (None at rest)."""
-        return self._last_w
+        return self._rim.last_mps
 
     def wheel_change_mps(self, w: float) -> float:
         """Aid innovation that signals a wheel-side slip change at rim speed ``w``, m/s."""
@@ -329,15 +272,13 @@ class SlipModel:
         # noise moves it too; a body-side change leaves it where it was).
         gap = abs(z - v)
         if gap > self.wheel_change_mps(w) and \
-                max(abs(w - wk) for _, wk in self._recent_w) * g > 0.5 * gap:
+                self._rim.moved_mps(w) * g > 0.5 * gap:
             if self._change_since_ns is None:
                 self._change_since_ns = t_ns
             if t_ns - self._change_since_ns >= int(_WHEEL_CHANGE_S * _NS):
-                # Continuity from before the rim began to move (the last sample within 10 %
-                # of the rim memory's largest change from now): on a ramp of the rim the aid
+                # Continuity from before the rim began to move: on a ramp of the rim the aid
                 # pulled the INS along with the old slip until the discrepancy showed.
-                dev = max(abs(w - wk) for _, wk in self._recent_w)
-                onset_ns = max(tk for tk, wk in self._recent_w if abs(w - wk) >= 0.9 * dev)
+                onset_ns = self._rim.onset_ns(w)
                 m = self._aided.mean(onset_ns - int(_ANCHOR_S * _NS), onset_ns) \
                     or self._aided.first()
                 coarse = coarse_ins(self.spread_var[-1], w)  # (a consumer IMU: aided speed)
@@ -389,10 +330,11 @@ class SlipModel:
         return AidDecision(z, p.wheel_aid_std_mps ** 2 * (4.0 if turning else 1.0), repair=quiet)
 
     def _start_change(self, anchor: Anchor | None, side: str) -> None:
-        self._carried_var_mps2 = self.held_speed_var_mps2(self._last_w or 0.0)
-        self._previous, self._anchor = self.slip_hold, anchor
+        self._carried_var_mps2 = self.held_speed_var_mps2(self._rim.last_mps or 0.0)
+        self._previous = self.slip_hold
+        self._measurement.start(anchor)
         self.slip_hold, self.mode = None, Mode.MEASURE
-        self._measure_since_ns, self._change_since_ns = None, None
+        self._change_since_ns = None
         self._aided.clear()
         self.step_test.clear()
         self._from_rest = False

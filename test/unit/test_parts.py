@@ -24,6 +24,7 @@ from slip_estimator.core.params import (
     renamed_in,
 )
 from slip_estimator.core.planet import EARTH, gravity_n
+from slip_estimator.core.rim_memory import MEMORY_S, RimMemory
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
 from slip_estimator.core.types import WheelSample
@@ -528,3 +529,19 @@ def test_a_rim_slowing_through_the_threshold_by_the_stamp_is_a_stop():
     for rims in ((0.04, 0.14), (0.03, 0.03, 0.03)):
         aid = WheelAid(late)
         assert not any(aid.stopping(WheelSample(k * ns, w)) for k, w in enumerate(rims))
+
+
+@pytest.mark.parametrize('rate_hz', [10.0, 50.0])
+def test_the_rim_memory_knows_when_the_rim_began_to_move(rate_hz):
+    # A commanded rate change: 0.5 m/s, then a ramp to 0.6 m/s over 0.5 s starting at 1.0 s.
+    rim = RimMemory()
+    t_s = np.arange(0.0, 1.8, 1.0 / rate_hz)
+    w = 0.5 + 0.1 * np.clip((t_s - 1.0) / 0.5, 0.0, 1.0)
+    steady = [rim.add(int(round(t * 1e9)), float(x)) for t, x in zip(t_s, w)]
+    assert not steady[0] and all(steady[1:])  # 0.02 m/s per sample at 10 Hz is within 5 %
+    assert rim.moved_mps(0.6) == pytest.approx(0.1)
+    # the last sample within 10 % of the change from the end (0.51 m/s at 1.05 s)
+    assert rim.onset_ns(0.6) * 1e-9 == pytest.approx(1.05, abs=1.0 / rate_hz)
+    assert not rim.add(int(1.9e9), 0.7)  # a jump is not steady
+    rim.add(int((1.9 + MEMORY_S) * 1e9), 0.7)
+    assert rim.moved_mps(0.7) == pytest.approx(0.0)  # the ramp is forgotten
