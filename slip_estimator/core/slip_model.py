@@ -121,6 +121,7 @@ class SlipModel:
         self._aided.clear()
         self.step_test.clear()
         self._stopped_since_ns: int | None = None
+        self._rest_aided = False  # the zero-speed aid of the current stop was given
         self._last_t_ns, self._aid_accel = 0, 0.0
         self._run_ahead.reset()
         self.chain.reset()
@@ -148,19 +149,20 @@ class SlipModel:
         self._last_t_ns = t_ns
         self._aid_accel = aid_accel_mps2
         self._run_ahead.add(t_ns, pitch_rad, pitch_std_rad)
-        stopping = self.stopping(t_ns, w)
+        self.stopping(t_ns, w)
         if not moving:
-            stopped_since = self._stopped_since_ns
+            stopped_since, rest_aided = self._stopped_since_ns, self._rest_aided
             carried = self.held_speed_var_mps2(self._rim.last_mps or 0.0)
             self.reset(from_rest=True)
-            self._stopped_since_ns = stopped_since
+            self._stopped_since_ns, self._rest_aided = stopped_since, rest_aided
             if stopped_since is None:  # the rim is above the moving threshold
                 return None
-            if stopping:
+            if t_ns - stopped_since < int(STOP_S * _NS):
                 self._carried_var_mps2 = carried  # until the zero-speed aid below
                 return None
             # Wheels held still: the body is at rest unless it slides, which the gate catches.
             # This anchors the next start even where a vibrating IMU keeps the ZUPT off.
+            self._rest_aided = True
             return AidDecision(0.0, (2.0 * self.params.wheel_aid_std_mps) ** 2)
         steady = self._rim.add(t_ns, w)
         if self.slip_hold is None:
@@ -168,16 +170,20 @@ class SlipModel:
             return self._measure(t_ns, w, v, v_free, steady, turning)
         return self._track(t_ns, w, v, v_free, steady, turning)
 
-    def stopping(self, t_ns: int, w: float) -> bool:
+    def stopping(self, t_ns: int, w: float, awaits_aid: bool = True) -> bool:
         """The rim speed ``w`` fell below the moving threshold less than ``STOP_S`` ago (from
-        then on still wheels are a stop: a zero-speed aid); repeated calls for one sample are
+        then on still wheels are a stop: a zero-speed aid), or, with ``awaits_aid``, the stop's
+        zero-speed aid has not been given yet: the sample it comes with still shows the speed
+        the INS had before it, the held slip's error, not a slide (a slide shows from the next
+        sample on, where the gate refuses the aid). Repeated calls for one sample are
         harmless."""
         if abs(w) >= self.params.moving_speed_threshold_mps:
-            self._stopped_since_ns = None
+            self._stopped_since_ns, self._rest_aided = None, False
             return False
         if self._stopped_since_ns is None:
             self._stopped_since_ns = t_ns
-        return t_ns - self._stopped_since_ns < int(STOP_S * _NS)
+        return t_ns - self._stopped_since_ns < int(STOP_S * _NS) or \
+            (awaits_aid and not self._rest_aided)
 
     # ------------------------------------------------------------------ measuring
     def _measure(self, t_ns: int, w: float, v: float, v_free: float, steady: bool,

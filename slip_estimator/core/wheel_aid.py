@@ -50,7 +50,8 @@ class WheelAid:
            whether the wheels move changes at once. A slowing rim whose trend from the last
            sample, carried over the latency, falls below the moving threshold has stopped by
            the stamp: the slip published there is "not moving"."""
-        held = self.slip_model.stopping(wheel.stamp_ns, wheel.rim_speed_mps)
+        held = self.slip_model.stopping(wheel.stamp_ns, wheel.rim_speed_mps,
+                                        awaits_aid=self._mode == 'hold')
         last, self._last = self._last, (wheel.stamp_ns, wheel.rim_speed_mps)
         return held or self._stops_by_stamp(wheel, last)
 

@@ -499,16 +499,24 @@ def test_wheel_yaw_aid_lets_go_while_wheels_and_gyro_disagree_persistently():
 
 def test_wheels_that_just_stopped_hold_the_body_for_the_stop_time():
     """The rim speed falls below the moving threshold: for STOP_S the body is taken to stop
-    with the wheels (an INS speed left from a held slip is not a slide), then a body still
+    with the wheels (an INS speed left from a held slip is not a slide), and so is the sample
+    the stop's zero-speed aid comes with (the INS speed before the aid); then a body still
     moving reads as slip again (a slide that lasts, or a failed encoder); moving wheels end
-    it."""
-    aid = WheelAid(Params())
+    it. Without the slip model's aid (``wheel_aid: off``) the stop time alone."""
     ns = 1_000_000_000
-    assert not aid.stopping(WheelSample(0, 0.3))
-    assert aid.stopping(WheelSample(ns, 0.01))
-    assert aid.stopping(WheelSample(ns + 4 * ns // 10, 0.0))
-    assert not aid.stopping(WheelSample(ns + 5 * ns // 10, 0.0))
-    assert not aid.stopping(WheelSample(2 * ns, 0.3)) and aid.stopping(WheelSample(3 * ns, 0.0))
+    for mode in ('hold', 'off'):
+        aid = WheelAid(Params().replace(wheel_aid=mode))
+        assert not aid.stopping(WheelSample(0, 0.3))
+        assert aid.stopping(WheelSample(ns, 0.01))
+        assert aid.stopping(WheelSample(ns + 4 * ns // 10, 0.0))
+        t_aid = ns + 5 * ns // 10
+        assert aid.stopping(WheelSample(t_aid, 0.0)) == (mode == 'hold')
+        if mode == 'hold':  # (WheelAid.decide: the rim below the threshold is not moving)
+            zero = aid.slip_model.step(t_aid, 0.0, 0.05, 0.05, False, False)
+            assert zero is not None and zero.z_mps == 0.0
+        assert not aid.stopping(WheelSample(ns + 6 * ns // 10, 0.0))
+        assert not aid.stopping(WheelSample(2 * ns, 0.3))
+        assert aid.stopping(WheelSample(3 * ns, 0.0))
     sliding = slip_estimate(WheelSample(ns, 0.0), 0.1, 0.0, 1e-4, Params(), False, 1.0)
     stopping = slip_estimate(WheelSample(ns, 0.0), 0.1, 0.0, 1e-4, Params(), True, 1.0)
     assert sliding.slip_class == 4 and stopping.slip_class == 0
