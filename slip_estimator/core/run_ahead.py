@@ -33,7 +33,6 @@ class RunAheadCheck:
 
     def reset(self) -> None:
         self._pitch_rad = 0.0
-        self.pitch_std_rad = 0.0
         self._rate_rps = 0.0
         self._t_ns: int | None = None
 
@@ -42,9 +41,8 @@ class RunAheadCheck:
         """The last pitch, rad (FRD, nose up positive)."""
         return self._pitch_rad
 
-    def add(self, t_ns: int, pitch_rad: float, pitch_std_rad: float = 0.0) -> None:
-        """One pitch sample (at the wheel rate) and its 1-sigma."""
-        self.pitch_std_rad = pitch_std_rad
+    def add(self, t_ns: int, pitch_rad: float) -> None:
+        """One pitch sample (at the wheel rate)."""
         if self._t_ns is not None:
             dt_s = (t_ns - self._t_ns) * 1e-9
             if 0.0 < dt_s < 1.0:

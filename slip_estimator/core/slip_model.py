@@ -123,6 +123,7 @@ class SlipModel:
         self._stopped_since_ns: int | None = None
         self._rest_aided = False  # the zero-speed aid of the current stop was given
         self._last_t_ns, self._aid_accel = 0, 0.0
+        self._pitch_std_rad = 0.0  # the filter's tilt 1-sigma at the last sample
         self._run_ahead.reset()
         self.chain.reset()
         self._reanchor, self._quiet_until_ns = False, 0
@@ -148,16 +149,17 @@ class SlipModel:
              pitch_std_rad: float = 0.0) -> AidDecision | None:
         self._last_t_ns = t_ns
         self._aid_accel = aid_accel_mps2
-        self._run_ahead.add(t_ns, pitch_rad, pitch_std_rad)
-        self.stopping(t_ns, w)
+        self._run_ahead.add(t_ns, pitch_rad)
+        self._pitch_std_rad = pitch_std_rad
+        still_ns = self._wheels_still_ns(t_ns, w)
         if not moving:
             stopped_since, rest_aided = self._stopped_since_ns, self._rest_aided
             carried = self.held_speed_var_mps2(self._rim.last_mps or 0.0)
             self.reset(from_rest=True)
             self._stopped_since_ns, self._rest_aided = stopped_since, rest_aided
-            if stopped_since is None:  # the rim is above the moving threshold
+            if still_ns is None:  # the rim is above the moving threshold
                 return None
-            if t_ns - stopped_since < int(STOP_S * _NS):
+            if still_ns < int(STOP_S * _NS):
                 self._carried_var_mps2 = carried  # until the zero-speed aid below
                 return None
             # Wheels held still: the body is at rest unless it slides, which the gate catches.
@@ -177,13 +179,19 @@ class SlipModel:
         the INS had before it, the held slip's error, not a slide (a slide shows from the next
         sample on, where the gate refuses the aid). Repeated calls for one sample are
         harmless."""
+        still_ns = self._wheels_still_ns(t_ns, w)
+        return still_ns is not None and (still_ns < int(STOP_S * _NS)
+                                         or (awaits_aid and not self._rest_aided))
+
+    def _wheels_still_ns(self, t_ns: int, w: float) -> int | None:
+        """How long the rim speed ``w`` has been below the moving threshold at ``t_ns``, ns
+        (None while it is above: a new stop starts with no zero-speed aid given)."""
         if abs(w) >= self.params.moving_speed_threshold_mps:
             self._stopped_since_ns, self._rest_aided = None, False
-            return False
+            return None
         if self._stopped_since_ns is None:
             self._stopped_since_ns = t_ns
-        return t_ns - self._stopped_since_ns < int(STOP_S * _NS) or \
-            (awaits_aid and not self._rest_aided)
+        return t_ns - self._stopped_since_ns
 
     # ------------------------------------------------------------------ measuring
     def _measure(self, t_ns: int, w: float, v: float, v_free: float, steady: bool,
@@ -217,7 +225,7 @@ class SlipModel:
         return self.chain.settle(
             measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
             from_rest, unmeasured, not from_rest and ra.implausible(measured), ra.pitch_rad,
-            ra.pitch_std_rad)
+            self._pitch_std_rad)
 
     def held_speed_var_mps2(self, w: float) -> float:
         """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided
