@@ -9,6 +9,8 @@ from collections import deque
 from typing import NamedTuple
 
 _NS = 1_000_000_000
+ANCHOR_S = 0.5
+"""Aided samples before a change whose mean anchors its continuity measurement."""
 _NOISE_MEMORY_S = 5.0
 """Memory of the measured wheel/INS consistency noise, s."""
 _NOISE_STEP_MAX_S = 0.5
@@ -74,6 +76,12 @@ class AidedRecord:
         None when there is none."""
         rows = [x for x in self._rows if start_ns <= x[0] and (end_ns is None or x[0] <= end_ns)]
         return _mean(rows)
+
+    def before(self, onset_ns: int) -> AidedMean | None:
+        """What a change with onset ``onset_ns`` continues from: the mean over the
+        ``ANCHOR_S`` before it, or the oldest sample where none is that old (None when there
+        is no sample)."""
+        return self.mean(onset_ns - int(ANCHOR_S * _NS), onset_ns) or self.first()
 
     def first(self) -> AidedMean | None:
         """The oldest sample (None when there is none)."""

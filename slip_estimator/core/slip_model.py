@@ -50,7 +50,7 @@ import enum
 import math
 
 from slip_estimator.core.aid_decision import AidDecision
-from slip_estimator.core.aided_record import AidedRecord, Anchor, ConsistencyNoise
+from slip_estimator.core.aided_record import ANCHOR_S, AidedRecord, Anchor, ConsistencyNoise
 from slip_estimator.core.params import Params
 from slip_estimator.core.rim_memory import RimMemory
 from slip_estimator.core.run_ahead import RunAheadCheck
@@ -58,6 +58,7 @@ from slip_estimator.core.slip import speed_ratio
 from slip_estimator.core.slip_chain import SlipChain, coarse_ins
 from slip_estimator.core.slip_measurement import SlipMeasurement
 from slip_estimator.core.step_test import SCALES_S, StepTest
+from slip_estimator.core.stop_clock import STOP_S, StopClock
 
 _NS = 1_000_000_000
 _TURN_THRESHOLD_FACTOR = 1.5
@@ -68,16 +69,12 @@ glitch: the third consecutive sample at 10 Hz, the ninth at 50 Hz (a count of sa
 take a 0.06-s glitch for a change at 50 Hz)."""
 _QUIET_AFTER_GAP_S = 4.0
 """After an IMU gap the filter settles its attitude and biases: no body-side step test."""
-STOP_S = 0.5
-"""Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
-_ANCHOR_S = 0.5
-"""Aided samples before a change whose mean anchors its continuity measurement."""
 _WHEEL_TAKE_BACK_S = SCALES_S[0]
 """What the aid taught in this last stretch before a wheel-side change is taken back: a rim
 speed that moves (wheels spinning up, or a new commanded rate while the body slows in sand)
 was aided towards the old slip until the discrepancy lasted ``_WHEEL_CHANGE_S``; on the
 50-Hz robot that taught 0.09 m/s^2 in 0.5 s and the body's half of the change was lost."""
-CHANGE_LOOKBACK_S = SCALES_S[-1] + _ANCHOR_S + 0.5
+CHANGE_LOOKBACK_S = SCALES_S[-1] + ANCHOR_S + 0.5
 """How far before a body-side alarm its onset and continuity anchor can lie, s."""
 
 
@@ -109,6 +106,7 @@ class SlipModel:
         self._run_ahead = RunAheadCheck()
         self._rim = RimMemory()
         self._measurement = SlipMeasurement(params.slip_measure_s)
+        self._stop = StopClock(params.moving_speed_threshold_mps)
         self.reset(from_rest=True)  # a new filter starts from rest (or is told otherwise)
 
     def _reset(self) -> None:
@@ -120,8 +118,6 @@ class SlipModel:
         self._rim.clear()
         self._aided.clear()
         self.step_test.clear()
-        self._stopped_since_ns: int | None = None
-        self._rest_aided = False  # the zero-speed aid of the current stop was given
         self._last_t_ns, self._aid_accel = 0, 0.0
         self._pitch_std_rad = 0.0  # the filter's tilt 1-sigma at the last sample
         self._run_ahead.reset()
@@ -130,9 +126,10 @@ class SlipModel:
         self._carried_var_mps2 = 0.0  # the last hold's, while nothing re-measured the speed
 
     def reset(self, from_rest: bool) -> None:
-        """Forget the held slip: a stop (``from_rest``: the next start is ZUPT-anchored) or a
-        velocity re-initialised after a fault (not an anchor)."""
+        """Forget the held slip and the stop under way: a stop (``from_rest``: the next start
+        is ZUPT-anchored) or a velocity re-initialised after a fault (not an anchor)."""
         self._reset()
+        self._stop.clear()
         self._from_rest = from_rest
 
     def interrupt(self) -> None:
@@ -151,12 +148,11 @@ class SlipModel:
         self._aid_accel = aid_accel_mps2
         self._run_ahead.add(t_ns, pitch_rad)
         self._pitch_std_rad = pitch_std_rad
-        still_ns = self._wheels_still_ns(t_ns, w)
+        still_ns = self._stop.still_ns(t_ns, w)
         if not moving:
-            stopped_since, rest_aided = self._stopped_since_ns, self._rest_aided
             carried = self.held_speed_var_mps2(self._rim.last_mps or 0.0)
-            self.reset(from_rest=True)
-            self._stopped_since_ns, self._rest_aided = stopped_since, rest_aided
+            self._reset()  # the stop under way is kept
+            self._from_rest = True
             if still_ns is None:  # the rim is above the moving threshold
                 return None
             if still_ns < int(STOP_S * _NS):
@@ -164,7 +160,7 @@ class SlipModel:
                 return None
             # Wheels held still: the body is at rest unless it slides, which the gate catches.
             # This anchors the next start even where a vibrating IMU keeps the ZUPT off.
-            self._rest_aided = True
+            self._stop.rest_aided = True
             return AidDecision(0.0, (2.0 * self.params.wheel_aid_std_mps) ** 2)
         steady = self._rim.add(t_ns, w)
         if self.slip_hold is None:
@@ -173,25 +169,8 @@ class SlipModel:
         return self._track(t_ns, w, v, v_free, steady, turning)
 
     def stopping(self, t_ns: int, w: float, awaits_aid: bool = True) -> bool:
-        """The rim speed ``w`` fell below the moving threshold less than ``STOP_S`` ago (from
-        then on still wheels are a stop: a zero-speed aid), or, with ``awaits_aid``, the stop's
-        zero-speed aid has not been given yet: the sample it comes with still shows the speed
-        the INS had before it, the held slip's error, not a slide (a slide shows from the next
-        sample on, where the gate refuses the aid). Repeated calls for one sample are
-        harmless."""
-        still_ns = self._wheels_still_ns(t_ns, w)
-        return still_ns is not None and (still_ns < int(STOP_S * _NS)
-                                         or (awaits_aid and not self._rest_aided))
-
-    def _wheels_still_ns(self, t_ns: int, w: float) -> int | None:
-        """How long the rim speed ``w`` has been below the moving threshold at ``t_ns``, ns
-        (None while it is above: a new stop starts with no zero-speed aid given)."""
-        if abs(w) >= self.params.moving_speed_threshold_mps:
-            self._stopped_since_ns, self._rest_aided = None, False
-            return None
-        if self._stopped_since_ns is None:
-            self._stopped_since_ns = t_ns
-        return t_ns - self._stopped_since_ns
+        """The wheels are stopping, not stopped (:meth:`StopClock.stopping`)."""
+        return self._stop.stopping(t_ns, w, awaits_aid)
 
     # ------------------------------------------------------------------ measuring
     def _measure(self, t_ns: int, w: float, v: float, v_free: float, steady: bool,
@@ -293,8 +272,7 @@ class SlipModel:
                 # Continuity from before the rim began to move: on a ramp of the rim the aid
                 # pulled the INS along with the old slip until the discrepancy showed.
                 onset_ns = self._rim.onset_ns(w)
-                m = self._aided.mean(onset_ns - int(_ANCHOR_S * _NS), onset_ns) \
-                    or self._aided.first()
+                m = self._aided.before(onset_ns)
                 coarse = coarse_ins(self.spread_var[-1], w)  # (a consumer IMU: aided speed)
                 self._start_change(None if m is None else Anchor(
                     m.z_mps, m.v_mps if coarse else m.v_free_mps, False,
@@ -314,8 +292,7 @@ class SlipModel:
             # Continuity from before the longest scale: a transition slower than the scale
             # that fired began earlier, while the aid still held the old slip.
             onset_ns = min(onset_ns, t_ns - int(SCALES_S[-1] * _NS))
-            before = self._aided.mean(onset_ns - int(_ANCHOR_S * _NS), onset_ns) \
-                or self._aided.first()
+            before = self._aided.before(onset_ns)
             if before is not None:
                 # Once a stop measured the ground, the aid's tilt and bias corrections since
                 # the onset are the old slip's and are taken back; after a start in motion

@@ -24,7 +24,9 @@ from slip_estimator.core.params import (
     renamed_in,
 )
 from slip_estimator.core.planet import EARTH, gravity_n
+from slip_estimator.core.aided_record import ANCHOR_S, AidedRecord
 from slip_estimator.core.rim_memory import MEMORY_S, RimMemory
+from slip_estimator.core.stop_clock import STOP_S, StopClock
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
 from slip_estimator.core.types import WheelSample
@@ -553,3 +555,38 @@ def test_the_rim_memory_knows_when_the_rim_began_to_move(rate_hz):
     assert not rim.add(int(1.9e9), 0.7)  # a jump is not steady
     rim.add(int((1.9 + MEMORY_S) * 1e9), 0.7)
     assert rim.moved_mps(0.7) == pytest.approx(0.0)  # the ramp is forgotten
+
+
+def test_the_stop_clock_counts_still_wheels_and_waits_for_the_stops_aid() -> None:
+    """Still wheels are 'stopping' for STOP_S, then until the stop's zero-speed aid is given;
+    a moving rim ends the stop and forgets the aid."""
+    ns = 1_000_000_000
+    clock = StopClock(0.02)
+    assert clock.still_ns(0, 0.5) is None and not clock.stopping(0, 0.5)
+    t = [round(k * 0.1 * ns) for k in range(10)]
+    assert [clock.still_ns(x, 0.0) for x in t[:3]] == [0, t[1], t[2]]
+    stop_k = round(STOP_S / 0.1)
+    assert all(clock.stopping(x, 0.0) for x in t[:stop_k])
+    assert clock.stopping(t[stop_k], 0.0)  # the stop's aid is not given yet
+    assert not clock.stopping(t[stop_k], 0.0, awaits_aid=False)
+    clock.rest_aided = True
+    assert not clock.stopping(t[stop_k + 1], 0.0)
+    assert clock.still_ns(t[stop_k + 2], -0.03) is None  # reversing: moving again
+    assert not clock.rest_aided and clock.still_ns(t[stop_k + 3], 0.0) == 0
+
+
+def test_a_change_continues_from_the_aided_mean_before_its_onset() -> None:
+    """The anchor is the mean over the ANCHOR_S before the onset, or the oldest sample where
+    none is that old."""
+    ns = 1_000_000_000
+    rec = AidedRecord(5.0)
+    assert rec.before(ns) is None
+    for k in range(30):  # 10 Hz, z = 0.5 m/s, free speed rising 0.01 m/s per sample
+        rec.add(round(k * 0.1 * ns), 0.5, 0.5, 0.01 * k, 0.0)
+    onset = round(2.0 * ns)
+    m = rec.before(onset)
+    n = round(ANCHOR_S / 0.1) + 1  # samples in [onset - ANCHOR_S, onset]
+    assert m.v_free_mps == pytest.approx(0.01 * (20 - (n - 1) / 2))
+    assert m.last_ns == onset
+    early = rec.before(round(-1.0 * ns))  # before the first sample: the oldest one
+    assert early.v_free_mps == 0.0 and early.t_ns == 0
