@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from slip_estimator.core.params import Params
-from slip_estimator.effects import TEST17RUN_WINDOWS
+from slip_estimator.effects import TEST17RUN_BODY_PATTERNS, TEST17RUN_WINDOWS
 from slip_estimator.validation.configs import (
     CONFIG_BY_KEY,
     INJECTION_PATTERNS,
@@ -22,6 +22,7 @@ from slip_estimator.validation.configs import (
     cfg_d,
     say,
 )
+from slip_estimator.validation.imu_floor import body_side_bound, tilt_closure
 
 if TYPE_CHECKING:
     from slip_estimator.validation.study import CaseResult, LogInput
@@ -60,7 +61,8 @@ def collect_evidence(inputs: dict[str, LogInput], measured: Measured,
 
 def core_runs(rtk: LogInput, measured: Measured, progress: bool = True) -> dict[str, Any]:
     """The core-level evidence on the RTK log: release experiment, undeclared effects, C vs D
-    over the injection patterns, body-side slip (A, D without its body side, D)."""
+    over the injection patterns, body-side slip (A, D without its body side, D) and what the
+    IMU can resolve of it (:mod:`slip_estimator.validation.imu_floor`)."""
     shipped = rtk.params.replace(**cfg_d(measured, RTK_LOG))
     say(progress, 'release experiment and undeclared effects (core, test17run)')
     out: dict[str, Any] = {}
@@ -70,6 +72,9 @@ def core_runs(rtk: LogInput, measured: Measured, progress: bool = True) -> dict[
         k: rtk.params.replace(**CONFIG_BY_KEY[k].overrides(measured, RTK_LOG))
         for k in ('C', 'D')})
     out['imu_speed_scatter'] = imu_speed_scatter(rtk.log, rtk.params)
+    out['tilt_closure'] = tilt_closure(rtk.log, shipped)
+    out['body_side_bound'] = body_side_bound(
+        rtk.log, shipped, [f for pattern in TEST17RUN_BODY_PATTERNS for _, _, f in pattern])
     out['body_side'] = body_side(rtk.log, {
         'A': rtk.params.replace(**cfg_a(measured, RTK_LOG)),
         'D wheel side only': shipped.replace(slip_change_sigma=20.0),

@@ -111,7 +111,8 @@ def effect_d(page: Page) -> list[str]:
         'ground after an episode is the ground before it.'), '']
     lines += page.fig('release_test17run', 'unaided INS speed error after release')
     lines += pattern_section(ev.get('patterns'))
-    lines += body_side_section(ev.get('body_side'), ev.get('imu_speed_scatter'))
+    lines += body_side_section(ev.get('body_side'), ev.get('imu_speed_scatter'),
+                               ev.get('tilt_closure'), ev.get('body_side_bound'))
     return lines
 
 

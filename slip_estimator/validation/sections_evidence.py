@@ -71,8 +71,43 @@ def _imu_scatter_text(sc: dict[str, list[float]] | None) -> str:
         'next stop or a return to the baseline ground.')
 
 
+def _floor_text(tilt: dict[str, float] | None, bound: dict[str, Any] | None) -> str:
+    """Where the wander comes from and what no reading passes, from ``validation.imu_floor``."""
+    if not tilt or not bound:
+        return ''
+    spans = bound['spans_s']
+    k = spans.index(1.5) if 1.5 in spans else len(spans) // 2
+
+    def recall(j: int) -> str:
+        return ' / '.join(fmt(r, 2) for r in bound['recall'][j])
+
+    return (
+        f'Why, and what no slip model passes (`validation.imu_floor`). The wander is the '
+        f'attitude: the gyro integrated across the {fmt(tilt["drive_s"], 0)}-s drive from the '
+        f'levelled rest before it gives a tilt that differs from the accelerometer\'s levelling '
+        f'at the rest after it by {fmt(tilt["pitch_diff_deg"], 2)} deg in pitch and '
+        f'{fmt(tilt["roll_diff_deg"], 2)} deg in roll, where the two halves of that rest agree '
+        f'to {fmt(tilt["level_floor_deg"], 2)} deg (the datasheet\'s 1.6 deg/h in-run bias '
+        f'would allow 0.02 deg); each 0.1 deg of pitch is 0.017 m/s^2 of forward acceleration. '
+        f'The filter re-learns the tilt from the wheel aid; a free INS started from its state '
+        f'carries whatever tilt error the aid left. An oracle that knows the instant of every change and the true '
+        f'speed before it, and reads the change with the shipped filter\'s free INS (its state '
+        f'at the onset, the raw IMU after), is off by '
+        f'{" / ".join(fmt(x, 3) for x in bound["rms_mps"])} m/s RMS across '
+        f'{" / ".join(fmt(x, 1) for x in spans)} s ({bound["n"]} onsets while driving). At the '
+        f'injected body-side levels (truth slip '
+        f'{" / ".join(fmt(x, 2) for x in bound["levels"])} at {fmt(bound["rim_mps"], 2)} m/s) '
+        f'its class recall over {fmt(spans[k], 1)} s, the shortest reading that holds a 1-s '
+        f'transition between two 0.5-s means, is {recall(k)} (over {fmt(spans[0], 1)} s: '
+        f'{recall(0)}). That bounds any real-time reading of these changes from this IMU: '
+        f'medium and high recall of 0.85 on the real log are out of reach on this rover, '
+        f'whatever the slip model; they need a second body-speed source.')
+
+
 def body_side_section(rows: list[dict[str, Any]] | None,
-                      scatter: dict[str, list[float]] | None = None) -> list[str]:
+                      scatter: dict[str, list[float]] | None = None,
+                      tilt: dict[str, float] | None = None,
+                      bound: dict[str, Any] | None = None) -> list[str]:
     """The slip model on body-side and mixed slip of the real log."""
     if not rows:
         return []
@@ -116,7 +151,7 @@ def body_side_section(rows: list[dict[str, Any]] | None,
                    + ', '.join(f'{k} {fmt(mixed[k], 2)}' for k in keys) + '; F1 '
                    + ', '.join(f'{k} {fmt(mixed_f1[k], 2)}' for k in keys) + '.'
                    if n_mixed else '')), '',
-           _imu_scatter_text(scatter), ''])
+           _imu_scatter_text(scatter), '', _floor_text(tilt, bound), ''])
 
 
 def undeclared_section(rows: list[dict[str, Any]] | None) -> list[str]:

@@ -97,6 +97,23 @@ def test_imu_speed_scatter_is_a_walk_above_the_references_floor(study) -> None:
     assert sc['imu_vs_rtk_std'][k] == pytest.approx(std[k], rel=0.3)
 
 
+def test_the_imu_floor_bounds_a_body_side_reading(study) -> None:
+    """The gyro's tilt across the drive disagrees with the accelerometer's levelling at the
+    rests well beyond the levelling's own agreement, and an oracle reading of a body-side
+    change from the free INS loses class recall: the evidence behind the report's bound."""
+    st, _ = study
+    tilt, bound = st.evidence['tilt_closure'], st.evidence['body_side_bound']
+    assert tilt['level_floor_deg'] < 0.1
+    assert max(abs(tilt['pitch_diff_deg']), abs(tilt['roll_diff_deg'])) \
+        > 5.0 * tilt['level_floor_deg']
+    rms = bound['rms_mps']
+    assert bound['n'] > 300 and all(b > a for a, b in zip(rms, rms[1:]))
+    assert bound['levels'] == sorted(bound['levels']) and len(bound['levels']) == 4
+    k = bound['spans_s'].index(1.5)
+    assert all(0.0 < r <= 1.0 for r in bound['recall'][k])
+    assert min(bound['recall'][k][:2]) < 0.85  # medium / lower high: below issue 9's level
+
+
 def test_report_and_figures(study) -> None:
     from slip_estimator.validation.configs import COMMAND
     from slip_estimator.validation.figures import write_figures
@@ -112,6 +129,7 @@ def test_report_and_figures(study) -> None:
                  '## Which metric rests on which truth', '## Evidence per effect',
                  '## Undeclared effects'):
         assert head in text
+    assert 'no slip model passes (`validation.imu_floor`)' in text
     # Slip table: header + separator + one row per configuration, same column count.
     lines = text.splitlines()
     i = lines.index(next(ln for ln in lines if ln.startswith('| config | bal. acc.')))

@@ -1,0 +1,164 @@
+"""What the real IMU can resolve of a body-side slip change: the floor no slip model passes.
+
+A body-side change (the wheels hold their rate, the body slows in sand) shows only in the IMU:
+the free INS has to carry the body speed across the transition. Two measurements on the RTK
+log say how well it can, independent of any slip model:
+
+* :func:`tilt_closure`: the tilt the gyro integrates across the drive against the change of
+  the gravity direction the accelerometer measures between the rest before and the rest after
+  (at rest there is no vibration and a 1-s mean levels to a few thousandths of a degree). Each
+  0.1 deg of tilt error is 0.017 m/s^2 of forward acceleration error;
+* :func:`body_side_bound`: an oracle that knows the instant of every change and the true speed
+  before it, and reads the change with the shipped filter's free INS (its attitude, velocity
+  and biases at the onset, the raw IMU after it) across a span long enough to contain the
+  transition. The class recall it reaches at the injected body-side levels is an upper bound
+  for any real-time reading of those changes from this IMU.
+
+Both take the shipped parameters; only the core and numpy are used.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from slip_estimator.core.params import Params
+
+BOUND_SPANS_S = (1.0, 1.5, 2.0)
+"""Reading spans of :func:`body_side_bound`: a 1-s transition between two 0.5-s means needs
+1.5 s; 1.0 s is shorter than any real reading (a bound on the bound)."""
+_DRIVING_MPS = 0.4
+"""RTK speed above which an onset counts as driving (the log cruises at ~0.7 m/s)."""
+
+
+def _levelled_tilt_rad(f_ib_b: np.ndarray) -> tuple[float, float]:
+    """(pitch, roll) of a resting FRD IMU from its mean specific force, rad."""
+    fx, fy, fz = np.asarray(f_ib_b, dtype=float).mean(axis=0)
+    return math.atan2(fx, math.hypot(fy, fz)), math.atan2(-fy, -fz)
+
+
+def _tilt_dcm(pitch_rad: float, roll_rad: float) -> np.ndarray:
+    """Body (FRD) to level frame, heading zero."""
+    cp, sp, cr, sr = math.cos(pitch_rad), math.sin(pitch_rad), math.cos(roll_rad), \
+        math.sin(roll_rad)
+    return np.array([[cp, sp * sr, sp * cr], [0.0, cr, -sr], [-sp, cp * sr, cp * cr]])
+
+
+def tilt_closure(log: Any, params: Params, rest_s: float = 3.0) -> dict[str, float]:
+    """Gyro-integrated tilt across the drive against accelerometer levelling at both rests.
+
+    The gyro bias (with the planet's rate) is the mean rate of the ``rest_s`` before the
+    motion; the attitude starts from that rest's levelled tilt and is integrated sample by
+    sample (exact rotation per sample) to the rest after the motion, where it is compared with
+    that rest's levelled tilt. A straight drive keeps the planet rate's projection: on a drive
+    with turns its change (up to 15 deg/h) is part of the figure. Returns pitch and roll of
+    both (deg), their differences, the drive's duration (s) and the accelerometer's own
+    agreement between the two halves of the rest after (deg, the floor of the comparison).
+    """
+    from slip_estimator.core.mechanization import rodrigues
+    from slip_estimator.pathfinder import motion_interval
+    from slip_estimator.streams import from_pathfinder
+
+    data = from_pathfinder(log, params)
+    t = data.imu_ns * 1e-9
+    t_start, t_end = motion_interval(log)
+    before = (t > t_start - 0.5 - rest_s) & (t < t_start - 0.5)
+    after = (t > t_end + 1.0) & (t < t_end + 1.0 + rest_s)
+    if before.sum() < 10 or after.sum() < 10:
+        return {}
+    bias = data.omega_ib_b[before].mean(axis=0)
+    C = _tilt_dcm(*_levelled_tilt_rad(data.f_ib_b[before]))
+    i_from = int(np.flatnonzero(before)[-1])
+    i_to = int(np.flatnonzero(after)[len(np.flatnonzero(after)) // 2])
+    for i in range(i_from + 1, i_to + 1):
+        C = C @ np.array(rodrigues(*((data.omega_ib_b[i] - bias) * (t[i] - t[i - 1])))
+                         ).reshape(3, 3)
+    gyro = (-math.asin(C[2, 0]), math.atan2(C[2, 1], C[2, 2]))
+    level = _levelled_tilt_rad(data.f_ib_b[after])
+    k = np.flatnonzero(after)
+    first, second = (_levelled_tilt_rad(data.f_ib_b[k[:len(k) // 2]]),
+                     _levelled_tilt_rad(data.f_ib_b[k[len(k) // 2:]]))
+    deg = math.degrees
+    return {'drive_s': float(t[i_to] - t[i_from]),
+            'pitch_gyro_deg': deg(gyro[0]), 'roll_gyro_deg': deg(gyro[1]),
+            'pitch_level_deg': deg(level[0]), 'roll_level_deg': deg(level[1]),
+            'pitch_diff_deg': deg(gyro[0] - level[0]), 'roll_diff_deg': deg(gyro[1] - level[1]),
+            'level_floor_deg': deg(max(abs(first[0] - second[0]), abs(first[1] - second[1])))}
+
+
+def oracle_recall(speed_errors_mps: np.ndarray, slip: float, rim_mps: float) -> float:
+    """Fraction of readings that keep the class of a true ``slip`` at rim speed ``rim_mps``
+    when the body speed read after the change is off by each of ``speed_errors_mps``
+    (``s_read = s - e / rim``, eq. 1)."""
+    from slip_estimator.core.slip import slip_class_array
+
+    e = np.asarray(speed_errors_mps, dtype=float)
+    read = slip - e / rim_mps
+    moving = np.ones(read.shape, dtype=bool)
+    true_class = slip_class_array(np.array([slip]), np.array([True]))[0]
+    return float(np.mean(slip_class_array(read, moving) == true_class))
+
+
+def _forward_speed_mps(state: Any) -> float:
+    """Horizontal speed along the body's heading, m/s."""
+    x = np.array(state.C_b_n[:, 0], dtype=float)
+    x[2] = 0.0
+    return float(state.v_eb_n @ (x / np.linalg.norm(x)))
+
+
+def body_side_bound(log: Any, params: Params, body_factors: Sequence[float],
+                    spans_s: Sequence[float] = BOUND_SPANS_S, grid_s: float = 0.1
+                    ) -> dict[str, Any]:
+    """The oracle of the module docstring on the plain log, from every ``grid_s`` while
+    driving. ``body_factors``: the injected body-speed factors; each is turned into its truth
+    slip with the ground's own slip (median RTK speed over rim speed while driving).
+
+    Returns ``spans_s``, per span the RMS of the speed-change error (``rms_mps``, m/s), the
+    truth slips (``levels``), the median rim speed (``rim_mps``) and per span and level the
+    oracle's class recall (``recall``), and the number of onsets.
+    """
+    from slip_estimator.core.estimator import SlipEstimator
+    from slip_estimator.core.mechanization import mechanize
+    from slip_estimator.effects import gnss_speed, run_core
+    from slip_estimator.streams import from_pathfinder
+
+    data = from_pathfinder(log, params)
+    t = data.imu_ns * 1e-9
+    v_rtk = gnss_speed(log, t)
+    onsets = set(np.searchsorted(t, np.arange(t[0], t[-1], grid_s)).tolist())
+    states: dict[int, Any] = {}  # IMU sample index -> the filter's state after it
+    index = iter(range(len(t)))
+
+    class Recorded(SlipEstimator):
+        def add_imu(self, sample: Any) -> list:
+            out = super().add_imu(sample)
+            i = next(index)
+            if self.aligned and i in onsets and v_rtk[i] > _DRIVING_MPS:
+                states[i] = self.state.copy()
+            return out
+
+    est, _, _ = run_core(params, data, estimator=Recorded)
+    planet = est.filter.planet
+    spans = sorted(spans_s)
+    errors: list[list[float]] = [[] for _ in spans]
+    for i0, state in sorted(states.items()):
+        if t[i0] + spans[-1] > t[-1] - 0.5:
+            continue
+        st, v0, i = state.copy(), _forward_speed_mps(state), i0
+        for k, span in enumerate(spans):
+            while t[i] < t[i0] + span:
+                mechanize(st, data.f_ib_b[i + 1], data.omega_ib_b[i + 1], t[i + 1] - t[i],
+                          planet)
+                i += 1
+            errors[k].append((_forward_speed_mps(st) - v0) - (v_rtk[i] - v_rtk[i0]))
+    rim = np.interp(t, data.wheel_ns * 1e-9, data.rim_mps.mean(axis=1))
+    driving = (v_rtk > _DRIVING_MPS) & (rim > 0.5)
+    rim_mps = float(np.median(rim[driving]))
+    ground = 1.0 - float(np.median(v_rtk[driving] / rim[driving]))
+    levels = sorted({round(1.0 - f * (1.0 - ground), 2) for f in body_factors})
+    return {'spans_s': spans, 'levels': levels, 'rim_mps': rim_mps, 'n': len(errors[0]),
+            'rms_mps': [float(np.sqrt(np.mean(np.square(e)))) for e in errors],
+            'recall': [[oracle_recall(np.array(e), s, rim_mps) for s in levels]
+                       for e in errors]}
