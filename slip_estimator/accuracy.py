@@ -18,6 +18,8 @@ test17run        plain forward-speed RMSE against RTK; wheel-side, body-side (fo
 
 ``--set NAME=VALUE`` overrides a parameter everywhere (to compare a setting without editing
 code); ``--json FILE`` writes every figure. Cases run in ``--jobs`` worker processes.
+``--bound`` adds, per drive, what a perfect reading of each change could score
+(:func:`reading_bound`): the ceiling the drive's IMU sets for any slip model.
 """
 from __future__ import annotations
 
@@ -30,22 +32,61 @@ from typing import Any
 
 FAMILIES = ('short', 'default', 'mixed', 'patches', 'rough')
 """The drive families scored, in print order (the names of ``sim.bag.SCENARIOS``)."""
+BOUND_SPAN_S = 1.5
+"""Reading span of :func:`reading_bound`: a 1-s transition between two 0.5-s means."""
+_BOUND_GRID_S = 0.5
+_SETTLED_S = 3.0
+"""A reading starts where the truth slip has not changed (by 0.05) for this long before and
+until this long after the span: the filter state there is the one a change starts from."""
 REAL_CASES = ('wheel', 'body0', 'body1', 'body2', 'body3', 'mixed0', 'mixed1', 'mixed2',
               'mixed3')
 
 
-def sim_case(family: str, seed: int, overrides: dict[str, Any]) -> dict[str, Any]:
-    """One simulated drive through the core; its slip scored on the simulator truth."""
+def sim_case(family: str, seed: int, overrides: dict[str, Any], bound: bool = False
+             ) -> dict[str, Any]:
+    """One simulated drive through the core; its slip scored on the simulator truth (with
+    ``bound``, also :func:`reading_bound`)."""
     from slip_estimator.effects import score_on_sim
     from slip_estimator.sim import simulate
     from slip_estimator.sim.bag import SCENARIOS, sim_params
 
     r = simulate(SCENARIOS[family](seed))
-    s = score_on_sim(r, sim_params(r).replace(**overrides)).slip
-    return {'family': family, 'seed': seed, 'balanced_accuracy': s.balanced_accuracy,
-            'sig_f1': s.significant_f1, 'recall': [float(x) for x in s.recall],
-            'slip_z2_mean': s.slip_z2_mean, 'slip_within_3sigma': s.slip_within_3sigma,
-            'alarms_at_rest': int(s.counts[2:, 0].sum())}
+    params = sim_params(r).replace(**overrides)
+    s = score_on_sim(r, params).slip
+    out = {'family': family, 'seed': seed, 'balanced_accuracy': s.balanced_accuracy,
+           'sig_f1': s.significant_f1, 'recall': [float(x) for x in s.recall],
+           'slip_z2_mean': s.slip_z2_mean, 'slip_within_3sigma': s.slip_within_3sigma,
+           'alarms_at_rest': int(s.counts[2:, 0].sum())}
+    if bound:
+        out['bound_recall'] = reading_bound(r, params)
+    return out
+
+
+def reading_bound(r: Any, params: Any) -> list[float]:
+    """Per moving class (low .. extreme) the recall of an oracle that knows every change's
+    instant and the true speed before it and reads the change with the filter's free INS over
+    ``BOUND_SPAN_S`` (:mod:`slip_estimator.validation.imu_floor`), on the simulated drive
+    ``r`` (a ``sim.SimResult``) with ``params``: no slip model that reads each change from
+    this IMU does better (the oracle's timing is perfect; no chaining or false alarm counts)."""
+    import numpy as np
+
+    from slip_estimator.streams import from_simulation
+    from slip_estimator.validation.imu_floor import class_recall_bound, reading_errors
+
+    data = from_simulation(r, params)
+    t = data.imu_ns * 1e-9
+    imu_ns = r.stamps_ns(r.imu_t_s)
+    v_true = np.interp(data.imu_ns, imu_ns, r.v_ob_b[:, 0])
+    speed = np.interp(data.imu_ns, imu_ns, r.speed_mps)
+    slip = np.interp(data.imu_ns, r.stamps_ns(r.wheel_t_s), np.nan_to_num(r.slip_true))
+    eligible = np.zeros(len(t), dtype=bool)
+    for i in np.searchsorted(t, np.arange(t[0], t[-1], _BOUND_GRID_S)):
+        a, b = np.searchsorted(t, [t[i] - _SETTLED_S, t[i] + BOUND_SPAN_S + _SETTLED_S])
+        eligible[i] = b < len(t) and np.ptp(slip[a:b]) < 0.05 and speed[a:b].min() > 0.1
+    errors = reading_errors(params, data, v_true, eligible, (BOUND_SPAN_S,), _BOUND_GRID_S)[0]
+    rim = np.asarray(r.rim_speed_true_mps, dtype=float)
+    return class_recall_bound(errors, np.asarray(r.slip_true, dtype=float),
+                              np.asarray(r.slip_class), rim.mean(axis=1) if rim.ndim > 1 else rim)
 
 
 def real_case(name: str, log_path: str, overrides: dict[str, Any]) -> dict[str, Any]:
@@ -76,9 +117,11 @@ def _run(task: tuple) -> dict[str, Any]:
 
 
 def score_matrix(families: list[str], seeds: list[int], log_path: Path | None,
-                 overrides: dict[str, Any], jobs: int = 2) -> dict[str, Any]:
-    """Every (family, seed) drive and, with ``log_path``, every test17run case."""
-    tasks: list[tuple] = [('sim', f, s, overrides) for f in families for s in seeds]
+                 overrides: dict[str, Any], jobs: int = 2, bound: bool = False
+                 ) -> dict[str, Any]:
+    """Every (family, seed) drive (with ``bound``, also its reading bound) and, with
+    ``log_path``, every test17run case."""
+    tasks: list[tuple] = [('sim', f, s, overrides, bound) for f in families for s in seeds]
     if log_path is not None:
         tasks += [('real', c, str(log_path), overrides) for c in ('plain',) + REAL_CASES]
     if jobs > 1:
@@ -109,6 +152,11 @@ def summary_lines(m: dict[str, Any]) -> list[str]:
                      f'in 3 sigma {sum(in3) / len(in3):.2f}  at-rest alarms '
                      f'{sum(r["alarms_at_rest"] for r in rows)}  per seed '
                      + ' '.join(f'{x:.2f}' for x in bal))
+        if all('bound_recall' in r for r in rows):
+            per = [_nanmean([r['bound_recall'][c] for r in rows]) for c in range(4)]
+            lines.append(f'{"":8s} reading bound ({BOUND_SPAN_S:.1f} s) recall low/medium/high/'
+                         f'extreme ' + ' / '.join(f'{x:.2f}' for x in per)
+                         + f', balanced {_nanmean(per):.3f}')
     if m['sim']:
         lines.append(f'all {len(m["sim"])} drives: balanced mean '
                      f'{sum(r["balanced_accuracy"] for r in m["sim"]) / len(m["sim"]):.3f}')
@@ -138,6 +186,11 @@ def _value(text: str) -> Any:
     return text
 
 
+def _nanmean(xs: list[float]) -> float:
+    vals = [x for x in xs if x == x]  # NaN: a class the drive did not have
+    return sum(vals) / len(vals) if vals else float('nan')
+
+
 def accuracy_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog='slip-estimator accuracy',
@@ -152,6 +205,9 @@ def accuracy_main(argv: list[str] | None = None) -> int:
                     help='override a parameter everywhere (repeatable)')
     ap.add_argument('--jobs', type=int, default=2, help='worker processes')
     ap.add_argument('--json', type=Path, help='also write every figure to this file')
+    ap.add_argument('--bound', action='store_true',
+                    help='also what a perfect reading of each change could score per drive '
+                         '(the IMU\'s ceiling for any slip model; ~20 s more per drive)')
     args = ap.parse_args(argv)
     families = [f for f in args.families.split(',') if f]
     unknown = [f for f in families if f not in FAMILIES]
@@ -187,7 +243,7 @@ def accuracy_main(argv: list[str] | None = None) -> int:
             print(f'slip-estimator accuracy: {log_path} not found: real-log cases skipped')
             log_path = None
     m = score_matrix(families, list(range(max(0, args.seeds))), log_path, overrides,
-                     max(1, args.jobs))
+                     max(1, args.jobs), args.bound)
     for line in summary_lines(m):
         print(line)
     if args.json:

@@ -108,25 +108,17 @@ def _forward_speed_mps(state: Any) -> float:
     return float(state.v_eb_n @ (x / np.linalg.norm(x)))
 
 
-def body_side_bound(log: Any, params: Params, body_factors: Sequence[float],
-                    spans_s: Sequence[float] = BOUND_SPANS_S, grid_s: float = 0.1
-                    ) -> dict[str, Any]:
-    """The oracle of the module docstring on the plain log, from every ``grid_s`` while
-    driving. ``body_factors``: the injected body-speed factors; each is turned into its truth
-    slip with the ground's own slip (median RTK speed over rim speed while driving).
-
-    Returns ``spans_s``, per span the RMS of the speed-change error (``rms_mps``, m/s), the
-    truth slips (``levels``), the median rim speed (``rim_mps``) and per span and level the
-    oracle's class recall (``recall``), and the number of onsets.
-    """
+def reading_errors(params: Params, data: Any, v_true_mps: np.ndarray, eligible: np.ndarray,
+                   spans_s: Sequence[float], grid_s: float = 0.1) -> list[np.ndarray]:
+    """The oracle's reading error: from every ``grid_s`` where ``eligible`` (per IMU sample),
+    the shipped filter's state (``params``, run over ``data``, a ``streams.SensorData``) is
+    propagated through the raw IMU alone; its forward speed change over each span of
+    ``spans_s`` less the true one (``v_true_mps`` per IMU sample), m/s, per span."""
     from slip_estimator.core.estimator import SlipEstimator
     from slip_estimator.core.mechanization import mechanize
-    from slip_estimator.effects import gnss_speed, run_core
-    from slip_estimator.streams import from_pathfinder
+    from slip_estimator.effects import run_core
 
-    data = from_pathfinder(log, params)
     t = data.imu_ns * 1e-9
-    v_rtk = gnss_speed(log, t)
     onsets = set(np.searchsorted(t, np.arange(t[0], t[-1], grid_s)).tolist())
     states: dict[int, Any] = {}  # IMU sample index -> the filter's state after it
     index = iter(range(len(t)))
@@ -135,7 +127,7 @@ def body_side_bound(log: Any, params: Params, body_factors: Sequence[float],
         def add_imu(self, sample: Any) -> list:
             out = super().add_imu(sample)
             i = next(index)
-            if self.aligned and i in onsets and v_rtk[i] > _DRIVING_MPS:
+            if self.aligned and i in onsets and eligible[i]:
                 states[i] = self.state.copy()
             return out
 
@@ -152,7 +144,43 @@ def body_side_bound(log: Any, params: Params, body_factors: Sequence[float],
                 mechanize(st, data.f_ib_b[i + 1], data.omega_ib_b[i + 1], t[i + 1] - t[i],
                           planet)
                 i += 1
-            errors[k].append((_forward_speed_mps(st) - v0) - (v_rtk[i] - v_rtk[i0]))
+            errors[k].append((_forward_speed_mps(st) - v0) - (v_true_mps[i] - v_true_mps[i0]))
+    return [np.array(e) for e in errors]
+
+
+def class_recall_bound(errors_mps: np.ndarray, slip: np.ndarray, slip_class: np.ndarray,
+                       rim_mps: np.ndarray, max_samples: int = 2000) -> list[float]:
+    """Per moving class (1 low .. 4 extreme) the oracle's recall over truth samples (``slip``,
+    ``slip_class``, ``rim_mps`` each), every sample reading with each of ``errors_mps``
+    (:func:`oracle_recall`); NaN for an absent class. At most ``max_samples`` samples, evenly
+    spaced, are read."""
+    k = np.flatnonzero((slip_class >= 1) & np.isfinite(slip) & (np.abs(rim_mps) > 0.05))
+    k = k[::max(1, len(k) // max_samples)]
+    per: dict[int, list[float]] = {c: [] for c in range(1, 5)}
+    for j in k:
+        per[int(slip_class[j])].append(oracle_recall(errors_mps, slip[j], abs(rim_mps[j])))
+    return [float(np.mean(per[c])) if per[c] else math.nan for c in range(1, 5)]
+
+
+def body_side_bound(log: Any, params: Params, body_factors: Sequence[float],
+                    spans_s: Sequence[float] = BOUND_SPANS_S, grid_s: float = 0.1
+                    ) -> dict[str, Any]:
+    """The oracle of the module docstring on the plain log, from every ``grid_s`` while
+    driving. ``body_factors``: the injected body-speed factors; each is turned into its truth
+    slip with the ground's own slip (median RTK speed over rim speed while driving).
+
+    Returns ``spans_s``, per span the RMS of the speed-change error (``rms_mps``, m/s), the
+    truth slips (``levels``), the median rim speed (``rim_mps``) and per span and level the
+    oracle's class recall (``recall``), and the number of onsets.
+    """
+    from slip_estimator.effects import gnss_speed
+    from slip_estimator.streams import from_pathfinder
+
+    data = from_pathfinder(log, params)
+    t = data.imu_ns * 1e-9
+    v_rtk = gnss_speed(log, t)
+    spans = sorted(spans_s)
+    errors = reading_errors(params, data, v_rtk, v_rtk > _DRIVING_MPS, spans, grid_s)
     rim = np.interp(t, data.wheel_ns * 1e-9, data.rim_mps.mean(axis=1))
     driving = (v_rtk > _DRIVING_MPS) & (rim > 0.5)
     rim_mps = float(np.median(rim[driving]))
@@ -160,5 +188,4 @@ def body_side_bound(log: Any, params: Params, body_factors: Sequence[float],
     levels = sorted({round(1.0 - f * (1.0 - ground), 2) for f in body_factors})
     return {'spans_s': spans, 'levels': levels, 'rim_mps': rim_mps, 'n': len(errors[0]),
             'rms_mps': [float(np.sqrt(np.mean(np.square(e)))) for e in errors],
-            'recall': [[oracle_recall(np.array(e), s, rim_mps) for s in levels]
-                       for e in errors]}
+            'recall': [[oracle_recall(e, s, rim_mps) for s in levels] for e in errors]}

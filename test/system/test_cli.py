@@ -37,18 +37,22 @@ def test_accuracy_scores_a_drive_and_says_what_it_skipped(tmp_path, capsys):
     """One drive of the matrix through the core: the fixed short drive keeps its level (the
     test fails when the slip model loses it) and its slip alarms at rest stay few (7 samples
     before the hold's speed variance was carried into the stops, 2 now: the ratio's last
-    samples before the wheels stop), and a missing real log is one line, not a traceback."""
+    samples before the wheels stop), and a missing real log is one line, not a traceback.
+    With ``--bound`` the drive's reading bound is printed and written."""
     import json
 
     out_json = tmp_path / 'acc.json'
     assert cli.main(['accuracy', '--families', 'short', '--seeds', '1', '--jobs', '1',
-                     '--data-dir', str(tmp_path), '--json', str(out_json)]) == 0
+                     '--data-dir', str(tmp_path), '--json', str(out_json), '--bound']) == 0
     out = capsys.readouterr().out
     assert 'real-log cases skipped' in out and out.count('short ') == 1
     m = json.loads(out_json.read_text())
     assert [r['seed'] for r in m['sim']] == [0] and not m['real']
     assert m['sim'][0]['balanced_accuracy'] >= 0.9
     assert m['sim'][0]['alarms_at_rest'] <= 3 and 'at-rest alarms' in out
+    bound = m['sim'][0]['bound_recall']
+    assert len(bound) == 4 and all(0.0 <= b <= 1.0 for b in bound if b is not None)
+    assert 'reading bound (1.5 s)' in out
 
 
 def test_accuracy_bad_inputs_one_line(capsys):
