@@ -14,7 +14,9 @@ log say how well it can, independent of any slip model:
   transition. The class recall it reaches at the injected body-side levels is an upper bound
   for any real-time reading of those changes from this IMU.
 
-Both take the shipped parameters; only the core and numpy are used.
+Both take the shipped parameters; only the core and numpy are used. The oracle's parts
+(:func:`reading_errors`, :func:`class_recall_bound`) also give each simulated drive its
+ceiling (``slip-estimator accuracy --bound``, :func:`slip_estimator.accuracy.reading_bound`).
 """
 from __future__ import annotations
 
