@@ -34,3 +34,18 @@ def test_oracle_recall_is_the_share_of_readings_that_keep_the_class() -> None:
     assert oracle_recall(e, 0.30, 1.0) == pytest.approx(0.5, abs=1e-3)
     # the same speed error costs more at a lower rim speed
     assert oracle_recall(e, 0.30, 0.5) == pytest.approx(0.25, abs=1e-3)
+
+
+def test_class_recall_bound_averages_the_oracle_per_truth_class() -> None:
+    """Per moving class, the mean of the oracle's recall over that class's truth samples;
+    NaN for a class the truth lacks; samples at rest or without a rim speed are not read."""
+    from slip_estimator.validation.imu_floor import class_recall_bound
+
+    slip = np.array([0.10, 0.10, 0.30, 0.25, 0.0, 0.5])
+    cls = np.array([1, 1, 2, 2, 0, 3])
+    rim = np.array([1.0, 1.0, 1.0, 1.0, 0.0, 0.01])  # the high sample has no rim speed
+    assert class_recall_bound(np.zeros(5), slip, cls, rim)[:2] == [1.0, 1.0]
+    e = np.array([0.0, 0.08])  # +0.08 m/s: 0.30 reads 0.22 (kept), 0.25 reads 0.17 (lost)
+    low, medium, high, extreme = class_recall_bound(e, slip, cls, rim)
+    assert low == 1.0 and medium == pytest.approx(0.75)
+    assert math.isnan(high) and math.isnan(extreme)
