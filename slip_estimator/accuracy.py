@@ -71,7 +71,8 @@ def reading_bound(r: Any, params: Any) -> list[float]:
     import numpy as np
 
     from slip_estimator.streams import from_simulation
-    from slip_estimator.validation.imu_floor import class_recall_bound, reading_errors
+    from slip_estimator.validation.imu_floor import (class_recall_bound, grid_indices,
+                                                    reading_errors)
 
     data = from_simulation(r, params)
     t = data.imu_ns * 1e-9
@@ -79,11 +80,13 @@ def reading_bound(r: Any, params: Any) -> list[float]:
     v_true = np.interp(data.imu_ns, imu_ns, r.v_ob_b[:, 0])
     speed = np.interp(data.imu_ns, imu_ns, r.speed_mps)
     slip = np.interp(data.imu_ns, r.stamps_ns(r.wheel_t_s), np.nan_to_num(r.slip_true))
-    eligible = np.zeros(len(t), dtype=bool)
-    for i in np.searchsorted(t, np.arange(t[0], t[-1], _BOUND_GRID_S)):
+
+    def settled(i: int) -> bool:
         a, b = np.searchsorted(t, [t[i] - _SETTLED_S, t[i] + BOUND_SPAN_S + _SETTLED_S])
-        eligible[i] = b < len(t) and np.ptp(slip[a:b]) < 0.05 and speed[a:b].min() > 0.1
-    errors = reading_errors(params, data, v_true, eligible, (BOUND_SPAN_S,), _BOUND_GRID_S)[0]
+        return b < len(t) and np.ptp(slip[a:b]) < 0.05 and speed[a:b].min() > 0.1
+
+    onsets = [i for i in grid_indices(t, _BOUND_GRID_S) if settled(i)]
+    errors = reading_errors(params, data, v_true, onsets, (BOUND_SPAN_S,))[0]
     rim = np.asarray(r.rim_speed_true_mps, dtype=float)
     return class_recall_bound(errors, np.asarray(r.slip_true, dtype=float),
                               np.asarray(r.slip_class), rim.mean(axis=1) if rim.ndim > 1 else rim)

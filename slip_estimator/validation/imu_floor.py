@@ -35,17 +35,9 @@ _DRIVING_MPS = 0.4
 """RTK speed above which an onset counts as driving (the log cruises at ~0.7 m/s)."""
 
 
-def _levelled_tilt_rad(f_ib_b: np.ndarray) -> tuple[float, float]:
-    """(pitch, roll) of a resting FRD IMU from its mean specific force, rad."""
-    fx, fy, fz = np.asarray(f_ib_b, dtype=float).mean(axis=0)
-    return math.atan2(fx, math.hypot(fy, fz)), math.atan2(-fy, -fz)
-
-
-def _tilt_dcm(pitch_rad: float, roll_rad: float) -> np.ndarray:
-    """Body (FRD) to level frame, heading zero."""
-    cp, sp, cr, sr = math.cos(pitch_rad), math.sin(pitch_rad), math.cos(roll_rad), \
-        math.sin(roll_rad)
-    return np.array([[cp, sp * sr, sp * cr], [0.0, cr, -sr], [-sp, cp * sr, cp * cr]])
+def grid_indices(t_s: np.ndarray, grid_s: float) -> np.ndarray:
+    """The sample indices nearest after every ``grid_s`` of the sample times ``t_s`` (s)."""
+    return np.unique(np.searchsorted(t_s, np.arange(t_s[0], t_s[-1], grid_s)))
 
 
 def tilt_closure(log: Any, params: Params, rest_s: float = 3.0) -> dict[str, float]:
@@ -59,6 +51,8 @@ def tilt_closure(log: Any, params: Params, rest_s: float = 3.0) -> dict[str, flo
     both (deg), their differences, the drive's duration (s) and the accelerometer's own
     agreement between the two halves of the rest after (deg, the floor of the comparison).
     """
+    from slip_estimator.core.alignment import level
+    from slip_estimator.core.frames import dcm_to_rpy, rpy_to_dcm
     from slip_estimator.core.mechanization import rodrigues
     from slip_estimator.pathfinder import motion_interval
     from slip_estimator.streams import from_pathfinder
@@ -71,23 +65,23 @@ def tilt_closure(log: Any, params: Params, rest_s: float = 3.0) -> dict[str, flo
     if before.sum() < 10 or after.sum() < 10:
         return {}
     bias = data.omega_ib_b[before].mean(axis=0)
-    C = _tilt_dcm(*_levelled_tilt_rad(data.f_ib_b[before]))
+    C = rpy_to_dcm(*level(data.f_ib_b[before].mean(axis=0)), 0.0)
     i_from = int(np.flatnonzero(before)[-1])
     i_to = int(np.flatnonzero(after)[len(np.flatnonzero(after)) // 2])
     for i in range(i_from + 1, i_to + 1):
         C = C @ np.array(rodrigues(*((data.omega_ib_b[i] - bias) * (t[i] - t[i - 1])))
                          ).reshape(3, 3)
-    gyro = (-math.asin(C[2, 0]), math.atan2(C[2, 1], C[2, 2]))
-    level = _levelled_tilt_rad(data.f_ib_b[after])
+    gyro_roll, gyro_pitch, _ = dcm_to_rpy(C)
     k = np.flatnonzero(after)
-    first, second = (_levelled_tilt_rad(data.f_ib_b[k[:len(k) // 2]]),
-                     _levelled_tilt_rad(data.f_ib_b[k[len(k) // 2:]]))
+    roll, pitch = level(data.f_ib_b[k].mean(axis=0))
+    (roll1, pitch1), (roll2, pitch2) = (level(data.f_ib_b[k[:len(k) // 2]].mean(axis=0)),
+                                        level(data.f_ib_b[k[len(k) // 2:]].mean(axis=0)))
     deg = math.degrees
     return {'drive_s': float(t[i_to] - t[i_from]),
-            'pitch_gyro_deg': deg(gyro[0]), 'roll_gyro_deg': deg(gyro[1]),
-            'pitch_level_deg': deg(level[0]), 'roll_level_deg': deg(level[1]),
-            'pitch_diff_deg': deg(gyro[0] - level[0]), 'roll_diff_deg': deg(gyro[1] - level[1]),
-            'level_floor_deg': deg(max(abs(first[0] - second[0]), abs(first[1] - second[1])))}
+            'pitch_gyro_deg': deg(gyro_pitch), 'roll_gyro_deg': deg(gyro_roll),
+            'pitch_level_deg': deg(pitch), 'roll_level_deg': deg(roll),
+            'pitch_diff_deg': deg(gyro_pitch - pitch), 'roll_diff_deg': deg(gyro_roll - roll),
+            'level_floor_deg': deg(max(abs(pitch1 - pitch2), abs(roll1 - roll2)))}
 
 
 def oracle_recall(speed_errors_mps: np.ndarray, slip: float, rim_mps: float) -> float:
@@ -110,18 +104,18 @@ def _forward_speed_mps(state: Any) -> float:
     return float(state.v_eb_n @ (x / np.linalg.norm(x)))
 
 
-def reading_errors(params: Params, data: Any, v_true_mps: np.ndarray, eligible: np.ndarray,
-                   spans_s: Sequence[float], grid_s: float = 0.1) -> list[np.ndarray]:
-    """The oracle's reading error: from every ``grid_s`` where ``eligible`` (per IMU sample),
-    the shipped filter's state (``params``, run over ``data``, a ``streams.SensorData``) is
-    propagated through the raw IMU alone; its forward speed change over each span of
-    ``spans_s`` less the true one (``v_true_mps`` per IMU sample), m/s, per span."""
+def reading_errors(params: Params, data: Any, v_true_mps: np.ndarray, onsets: Sequence[int],
+                   spans_s: Sequence[float]) -> list[np.ndarray]:
+    """The oracle's reading error: from each IMU sample index of ``onsets``, the shipped
+    filter's state (``params``, run over ``data``, a ``streams.SensorData``) is propagated
+    through the raw IMU alone; its forward speed change over each span of ``spans_s`` less
+    the true one (``v_true_mps`` per IMU sample), m/s, per span."""
     from slip_estimator.core.estimator import SlipEstimator
     from slip_estimator.core.mechanization import mechanize
     from slip_estimator.effects import run_core
 
     t = data.imu_ns * 1e-9
-    onsets = set(np.searchsorted(t, np.arange(t[0], t[-1], grid_s)).tolist())
+    wanted = set(int(i) for i in onsets)
     states: dict[int, Any] = {}  # IMU sample index -> the filter's state after it
     index = iter(range(len(t)))
 
@@ -129,7 +123,7 @@ def reading_errors(params: Params, data: Any, v_true_mps: np.ndarray, eligible: 
         def add_imu(self, sample: Any) -> list:
             out = super().add_imu(sample)
             i = next(index)
-            if self.aligned and i in onsets and eligible[i]:
+            if self.aligned and i in wanted:
                 states[i] = self.state.copy()
             return out
 
@@ -182,7 +176,8 @@ def body_side_bound(log: Any, params: Params, body_factors: Sequence[float],
     t = data.imu_ns * 1e-9
     v_rtk = gnss_speed(log, t)
     spans = sorted(spans_s)
-    errors = reading_errors(params, data, v_rtk, v_rtk > _DRIVING_MPS, spans, grid_s)
+    onsets = [i for i in grid_indices(t, grid_s) if v_rtk[i] > _DRIVING_MPS]
+    errors = reading_errors(params, data, v_rtk, onsets, spans)
     rim = np.interp(t, data.wheel_ns * 1e-9, data.rim_mps.mean(axis=1))
     driving = (v_rtk > _DRIVING_MPS) & (rim > 0.5)
     rim_mps = float(np.median(rim[driving]))

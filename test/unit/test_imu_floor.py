@@ -6,17 +6,19 @@ import math
 import numpy as np
 import pytest
 
-from slip_estimator.validation.imu_floor import _levelled_tilt_rad, _tilt_dcm, oracle_recall
+from slip_estimator.core.alignment import level
+from slip_estimator.core.frames import rpy_to_dcm
+from slip_estimator.validation.imu_floor import oracle_recall
 
 
 @pytest.mark.parametrize('pitch_deg, roll_deg', [(0.0, 0.0), (-2.8, 1.96), (10.0, -25.0)])
 def test_levelling_a_resting_imu_returns_its_tilt(pitch_deg: float, roll_deg: float) -> None:
     """A resting FRD IMU measures f = -C_n^b g (g down in NED); levelling it must give back
     the tilt the DCM was built from (the tilt closure compares the two)."""
-    C_b_n = _tilt_dcm(math.radians(pitch_deg), math.radians(roll_deg))
+    C_b_n = rpy_to_dcm(math.radians(roll_deg), math.radians(pitch_deg), 0.0)
     assert C_b_n @ C_b_n.T == pytest.approx(np.eye(3), abs=1e-12)
     f_b = -C_b_n.T @ np.array([0.0, 0.0, 9.81])
-    pitch, roll = _levelled_tilt_rad(np.tile(f_b, (5, 1)))
+    roll, pitch = level(np.tile(f_b, (5, 1)).mean(axis=0))
     assert (math.degrees(pitch), math.degrees(roll)) == pytest.approx((pitch_deg, roll_deg))
     assert f_b[0] * pitch_deg >= 0.0  # nose up: gravity's reaction points forward (FRD)
 
