@@ -17,7 +17,7 @@ joined while cruising): tilt within 1 deg. The velocity starts from the rim spee
 so until the first stop's ZUPT the speed carries the slip of the ground it started on (+0.03 to
 0.04 m/s at s = 0.05; 0.07 m/s RMS over the next 20 s through an uphill patch, against 0.02
 for a start from rest); after the stop it is as good as a start from rest. On the simulated
-robots of ``test/system/test_other_robots.py`` (README, "Other robots"): tilt 0.2-0.3 deg (industrial
+robots of ``test/system/test_other_robots.py`` (docs/other-robots.md): tilt 0.2-0.3 deg (industrial
 MEMS, 50 Hz) and 0.3-0.7 deg (consumer MEMS, 30 Hz); forward speed +3 to +16 % over the first
 10 s.
 

@@ -28,7 +28,7 @@ Modes (:class:`Mode`):
   INS speed change since) by an update of the aid's variance, which moves the velocity as far
   as the filter's own velocity variance lets it: 78 % of the way (median) on the real
   test17run IMU, 10-24 % on the simulated ones (a full reset measured worse on the real log,
-  README). Until the alarm the aid pulled the INS towards the old slip, and the filter took
+  docs/limits.md). Until the alarm the aid pulled the INS towards the old slip, and the filter took
   the pull for tilt and accelerometer bias: the alarm takes those corrections back
   (``AidDecision.take_back_since_ns``), or the free INS measures the change short (patch
   entries read 30-40 % low). Not after a start in motion: there the aid is still levelling
