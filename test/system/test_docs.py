@@ -101,3 +101,13 @@ def test_layout_page_lists_every_module():
     missing += [p.relative_to(REPO).as_posix() for d in listed_by_file for p in d.glob('*.py')
                 if not p.name.startswith('__') and not re.search(rf'\b{p.name}\b', layout)]
     assert not missing, f'docs/layout.md does not list {missing}'
+
+
+def test_readme_figures_are_the_docs_figures():
+    """The README quotes measured figures; each must stand in the page that measures them, so
+    a figure updated there and not here (or typed here alone) fails."""
+    section = README.read_text().split('## What it achieves', 1)[1].split('\n## ', 1)[0]
+    docs = ' '.join(p.read_text() for p in PAGES[1:])
+    figures = set(re.findall(r'\d+\.\d+|\d+-\d+', section))
+    assert figures
+    assert not {f for f in figures if f not in docs}, {f for f in figures if f not in docs}
