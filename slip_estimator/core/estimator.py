@@ -116,9 +116,12 @@ class SlipEstimator:
                 return self._evaluate_reached_wheels()
         elif self.imu_rate.add(dt_s):
             self.stationary.fit_window(self.params.stationary_window_s, self.imu_rate.dt_s)
-        self.updater.use_imu_noise(sample.noise_var, self.filter, self.stationary, self.imu_rate)
+        if sample.noise_var is not None:
+            self.updater.use_imu_noise(sample.noise_var, self.filter, self.stationary,
+                                       self.imu_rate)
         # 4. alignment
-        if not self.aligned:
+        flt = self.filter
+        if flt.state is None:
             start = self.alignment.add_imu(sample.f_ib_b, sample.omega_ib_b, sample.stamp_ns,
                                            self.stationary.is_stationary(sample.stamp_ns),
                                            self.imu_rate.dt_s, sample.tilt_rp_rad)
@@ -130,11 +133,11 @@ class SlipEstimator:
             if start is not None:
                 self._relevel(start, sample.stamp_ns)
         # 5. strapdown, covariance every few samples; 6. when due: pseudo-measurements, health
-        if self.filter.mechanize(f_l, w_l, dt_s):
-            self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
+        if flt.mechanize(f_l, w_l, dt_s):
+            flt.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
             if self.updater.due(sample.stamp_ns):
                 for correction in self.updater.pseudo_measurements(
-                        self.filter, self.stationary, sample.stamp_ns, self.imu_rate,
+                        flt, self.stationary, sample.stamp_ns, self.imu_rate,
                         self.track.width_m):
                     self.history.apply(correction, aid=False)
                 self._check_filter_health(sample.stamp_ns)
@@ -211,8 +214,10 @@ class SlipEstimator:
     # ------------------------------------------------------------------ wheel samples
     def _evaluate_reached_wheels(self) -> list[SlipEstimate]:
         """The slip of every waiting wheel sample the INS has reached; "unknown" per timeout."""
-        reached = self._waiting_wheels.reached(self.stamp_ns)
-        out = [est for est in map(self._evaluate_wheel, reached) if est is not None]
+        # Most IMU samples reach no wheel sample: no generator, no list made for them.
+        out = ([est for est in map(self._evaluate_wheel,
+                                   self._waiting_wheels.reached(self.stamp_ns))
+                if est is not None] if self._waiting_wheels.any_reached(self.stamp_ns) else [])
         stale_ns = self.supervisor.wheels_stale(self.stamp_ns, self._aligned_ns)
         if stale_ns is not None:
             out.append(self._unknown(stale_ns))
