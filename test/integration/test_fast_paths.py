@@ -558,6 +558,39 @@ def test_adapter_checks_slip_messages_when_the_frame_reads_as_nan():
         assert len(out) == 2 - 2 * dropped
 
 
+# --- Kalman steps ------------------------------------------------------------------------------
+def _sym(A: np.ndarray) -> np.ndarray:
+    return 0.5 * (A + A.T)
+
+
+@pytest.mark.parametrize('consider', [None, [2, 14]])
+def test_kalman_steps_equal_the_literal_formulas(consider):
+    """predict and update (in-place sums, halving in place) give the textbook expressions to
+    the bit: ``sym(Phi P Phi^T + Q)``, Joseph form with the gain from np.linalg.solve."""
+    rng = np.random.default_rng(19)
+    eye = np.eye(N_ERR)
+    for m in (1, 2, 3):
+        for _ in range(60):
+            A = rng.normal(size=(N_ERR, N_ERR))
+            P = A @ A.T + rng.uniform(1e-6, 1.0) * eye
+            Phi = eye + rng.normal(0.0, 0.05, (N_ERR, N_ERR))
+            Q = np.diag(rng.uniform(1e-9, 1e-3, N_ERR))
+            assert np.array_equal(kalman.predict(P, Phi, Q), _sym(Phi @ P @ Phi.T + Q))
+            assert np.array_equal(kalman.symmetrize(P + A), _sym(P + A))
+            H, nu = rng.normal(size=(m, N_ERR)), rng.normal(size=m)
+            R = np.diag(rng.uniform(1e-4, 1.0, m))
+            dx, P_new, rec = kalman.update(P, nu, H, R, consider=consider)
+            PHt = P @ H.T
+            S = _sym(H @ PHt + R)
+            K = np.linalg.solve(S, PHt.T).T
+            if consider is not None:
+                K[consider, :] = 0.0
+            IKH = eye - K @ H
+            assert np.array_equal(rec.S, S) and rec.nis == float(nu @ np.linalg.solve(S, nu))
+            assert np.array_equal(dx, K @ nu)
+            assert np.array_equal(P_new, _sym(IKH @ P @ IKH.T + K @ R @ K.T))
+
+
 # --- Kalman solve ------------------------------------------------------------------------------
 def test_kalman_solve_equals_numpy_and_raises_where_it_does():
     rng = np.random.default_rng(13)
