@@ -27,6 +27,7 @@ class ImuWindow:
     def __init__(self, n_samples: int) -> None:
         self._buf = np.zeros((max(2, n_samples), 6))  # the newest self._n rows are the window
         self._dev = np.empty_like(self._buf)  # deviations from the mean (variance)
+        self._queue_max = 6 * len(self._buf)  # floats queued when a whole window waits
         self._n = 0
         self._queue: list[float] = []  # queued samples, six floats each
         self._var: np.ndarray | None = None
@@ -38,7 +39,7 @@ class ImuWindow:
         queue.extend(f_ib_b)
         queue.extend(omega_ib_b)
         self._var = None
-        if len(queue) >= 6 * len(self._buf):
+        if len(queue) >= self._queue_max:
             self._flush()
 
     def _flush(self) -> None:

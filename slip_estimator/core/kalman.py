@@ -69,6 +69,9 @@ def _identity(n: int) -> np.ndarray:
     return eye
 
 
+_add_reduce = np.add.reduce
+
+
 def solve(S: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``np.linalg.solve(S, b)`` for one square ``S`` and a vector or matrix ``b``.
 
@@ -80,7 +83,7 @@ def solve(S: np.ndarray, b: np.ndarray) -> np.ndarray:
     """
     if _lapack is not None:
         x = (_lapack.solve1 if b.ndim == 1 else _lapack.solve)(S, b)
-        if math.isfinite(float(x.sum())):
+        if math.isfinite(float(_add_reduce(x, None))):  # x.sum() without its wrapper
             return x
     return np.linalg.solve(S, b)
 

@@ -97,6 +97,12 @@ class Supervisor:
         self.params = params
         self._recovery_ns = int(params.recovery_s * _NS)
         self._wheel_timeout_ns = int(params.wheel_timeout_s * _NS)
+        # Clipping thresholds (a range of 0 is not declared: never clipping); the samples
+        # reaching imu_step are finite.
+        self._accel_clip_mps2 = (0.999 * params.accel_range_mps2 if params.accel_range_mps2 > 0.0
+                                 else math.inf)
+        self._gyro_clip_rps = (0.999 * params.gyro_range_rps if params.gyro_range_rps > 0.0
+                               else math.inf)
         self.counters: dict[str, int] = dict.fromkeys((
             'imu_samples', 'imu_rejected', 'imu_gaps', 'imu_saturated', 'wheel_samples',
             'wheel_rejected', 'wheel_late', 'wheel_future', 'zupt', 'zaru', 'nhc', 'wheel',
@@ -125,12 +131,11 @@ class Supervisor:
     def imu_step(self, stamp_ns: int, dt_s: float, f_b: list[float], w_b: list[float],
                  aligned: bool) -> GapAction:
         """Clipping (counted, named) and the action an IMU step of ``dt_s`` calls for."""
-        p = self.params
-        if ((p.accel_range_mps2 > 0.0 and max(map(abs, f_b)) >= 0.999 * p.accel_range_mps2)
-                or (p.gyro_range_rps > 0.0
-                    and max(map(abs, w_b)) >= 0.999 * p.gyro_range_rps)):
+        if (max(map(abs, f_b)) >= self._accel_clip_mps2
+                or max(map(abs, w_b)) >= self._gyro_clip_rps):
             self.counters['imu_saturated'] += 1
             self.event(stamp_ns, 'IMU at its measurement range (clipping)')
+        p = self.params
         if dt_s <= p.max_imu_gap_s:
             return GapAction.NONE
         self.counters['imu_gaps'] += 1
