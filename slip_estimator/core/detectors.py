@@ -13,6 +13,9 @@ import numpy as np
 from slip_estimator.core.params import Params
 
 
+_add_reduce = np.add.reduce
+
+
 class ImuWindow:
     """The most recent IMU samples (body frame), oldest first, for window statistics.
 
@@ -23,6 +26,8 @@ class ImuWindow:
 
     def __init__(self, n_samples: int) -> None:
         self._buf = np.zeros((max(2, n_samples), 6))  # the newest self._n rows are the window
+        self._dev = np.empty_like(self._buf)  # deviations from the mean (variance)
+        self._queue_max = 6 * len(self._buf)  # floats queued when a whole window waits
         self._n = 0
         self._queue: list[float] = []  # queued samples, six floats each
         self._var: np.ndarray | None = None
@@ -34,7 +39,7 @@ class ImuWindow:
         queue.extend(f_ib_b)
         queue.extend(omega_ib_b)
         self._var = None
-        if len(queue) >= 6 * len(self._buf):
+        if len(queue) >= self._queue_max:
             self._flush()
 
     def _flush(self) -> None:
@@ -84,12 +89,17 @@ class ImuWindow:
         sample."""
         if self._var is None:
             self._flush()
-            a = self._buf[len(self._buf) - self._n:]
-            mean = a.sum(axis=0, keepdims=True)
-            mean /= self._n
-            x = a - mean
+            n = self._n
+            a = self._buf[len(self._buf) - n:]
+            # np.add.reduce is what ndarray.sum calls (without its Python wrapper); the
+            # deviations go to a buffer kept for it: the same operations, fewer allocations.
+            mean = _add_reduce(a, 0, None, None, True)
+            mean /= n
+            x = np.subtract(a, mean, out=self._dev[:n])
             x *= x
-            self._var = x.sum(axis=0) / self._n
+            var = _add_reduce(x, 0)
+            var /= n
+            self._var = var
         return self._var
 
 

@@ -141,7 +141,8 @@ def process_noise(state: NavState, F: np.ndarray, tau_s: float, S_rg: float, S_r
     t2, t3, t4, t5 = t * t, t ** 3, t ** 4, t ** 5
     C = state.C_b_n
     F21 = F[VEL, ATT]
-    T0, T1, T2 = Td = curvilinear_to_ned_diag(planet, state.llh[0], state.llh[2]).tolist()
+    L, _, h = state.llh.tolist()  # floats: numpy scalars make the arithmetic slower
+    T0, T1, T2 = Td = curvilinear_to_ned_diag(planet, L, h).tolist()
     FFt = F21 @ F21.T
     F21C = F21 @ C
     a_rg3 = S_rg * t3 / 3.0 + S_bgd * t5 / 5.0

@@ -95,53 +95,58 @@ class SlipEstimator:
     def add_imu(self, sample: ImuSample) -> list[SlipEstimate]:
         """Process one IMU sample; return slip estimates that became due."""
         # 1. check the sample
+        # (runs at the IMU rate: the stamp and the filter are held in locals)
+        stamp_ns = sample.stamp_ns
         f_l, w_l = sample.f_ib_b.tolist(), sample.omega_ib_b.tolist()
-        if not self.supervisor.accept_imu(sample.stamp_ns, self.stamp_ns, f_l, w_l):
+        if not self.supervisor.accept_imu(stamp_ns, self.stamp_ns, f_l, w_l):
             return []
-        prev_ns, self.stamp_ns = self.stamp_ns, sample.stamp_ns
+        prev_ns, self.stamp_ns = self.stamp_ns, stamp_ns
         self.omega_ib_b = sample.omega_ib_b
         # 2. the detectors see every sample
         self.stationary.add_imu(f_l, w_l)
-        self.timing.add_imu(sample.stamp_ns, w_l[2])
+        self.timing.add_imu(stamp_ns, w_l[2])
         if prev_ns is None:
             return self._slip_before_alignment()
         # 3. the time step: clipping, gaps (a long one is not integrated across), the IMU rate
-        dt_s = (sample.stamp_ns - prev_ns) * 1e-9
-        gap = self.supervisor.imu_step(sample.stamp_ns, dt_s, f_l, w_l, self.aligned)
+        dt_s = (stamp_ns - prev_ns) * 1e-9
+        flt = self.filter
+        gap = self.supervisor.imu_step(stamp_ns, dt_s, f_l, w_l, flt.state is not None)
         if gap is not GapAction.NONE:
             self.slip_model.interrupt()  # no step test across a hole in the INS
             if gap is GapAction.RECOVER:
-                self._recover(sample.stamp_ns, dt_s, 'IMU gap')
+                self._recover(stamp_ns, dt_s, 'IMU gap')
                 self.alignment.start_relevel()  # the tilt kept across it may be far off
                 return self._evaluate_reached_wheels()
         elif self.imu_rate.add(dt_s):
             self.stationary.fit_window(self.params.stationary_window_s, self.imu_rate.dt_s)
-        self.updater.use_imu_noise(sample.noise_var, self.filter, self.stationary, self.imu_rate)
+        if sample.noise_var is not None:
+            self.updater.use_imu_noise(sample.noise_var, self.filter, self.stationary,
+                                       self.imu_rate)
         # 4. alignment
-        if not self.aligned:
-            start = self.alignment.add_imu(sample.f_ib_b, sample.omega_ib_b, sample.stamp_ns,
-                                           self.stationary.is_stationary(sample.stamp_ns),
+        if flt.state is None:
+            start = self.alignment.add_imu(sample.f_ib_b, sample.omega_ib_b, stamp_ns,
+                                           self.stationary.is_stationary(stamp_ns),
                                            self.imu_rate.dt_s, sample.tilt_rp_rad)
             if start is not None:
-                self._align(start, sample.stamp_ns)
+                self._align(start, stamp_ns)
             return self._slip_before_alignment()
         if self.alignment.releveling:  # after a recovery
-            start = self.alignment.relevel(sample.f_ib_b, sample.omega_ib_b, sample.stamp_ns)
+            start = self.alignment.relevel(sample.f_ib_b, sample.omega_ib_b, stamp_ns)
             if start is not None:
-                self._relevel(start, sample.stamp_ns)
+                self._relevel(start, stamp_ns)
         # 5. strapdown, covariance every few samples; 6. when due: pseudo-measurements, health
-        if self.filter.mechanize(f_l, w_l, dt_s):
-            self.filter.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
-            if self.updater.due(sample.stamp_ns):
+        if flt.mechanize(f_l, w_l, dt_s):
+            flt.predict_covariance(self.stationary.window, self.imu_rate.dt_s)
+            if self.updater.due(stamp_ns):
                 for correction in self.updater.pseudo_measurements(
-                        self.filter, self.stationary, sample.stamp_ns, self.imu_rate,
-                        self.track.width_m):
+                        flt, self.stationary, stamp_ns, self.imu_rate, self.track.width_m):
                     self.history.apply(correction, aid=False)
-                self._check_filter_health(sample.stamp_ns)
-                if not self.aligned:
+                self._check_filter_health(stamp_ns)
+                flt = self.filter  # a new one after a full reset
+                if flt.state is None:
                     return []
         # 7. the forward-speed history, and 8. the wheel samples the INS has now reached
-        self.history.record(sample.stamp_ns, self.filter.state, w_l, dt_s)
+        self.history.record(stamp_ns, flt.state, w_l, dt_s)
         return self._evaluate_reached_wheels()
 
     def add_wheel(self, sample: WheelSample) -> list[SlipEstimate]:
@@ -211,8 +216,10 @@ class SlipEstimator:
     # ------------------------------------------------------------------ wheel samples
     def _evaluate_reached_wheels(self) -> list[SlipEstimate]:
         """The slip of every waiting wheel sample the INS has reached; "unknown" per timeout."""
-        reached = self._waiting_wheels.reached(self.stamp_ns)
-        out = [est for est in map(self._evaluate_wheel, reached) if est is not None]
+        # Most IMU samples reach no wheel sample: no generator, no list made for them.
+        out = ([est for est in map(self._evaluate_wheel,
+                                   self._waiting_wheels.reached(self.stamp_ns))
+                if est is not None] if self._waiting_wheels.any_reached(self.stamp_ns) else [])
         stale_ns = self.supervisor.wheels_stale(self.stamp_ns, self._aligned_ns)
         if stale_ns is not None:
             out.append(self._unknown(stale_ns))

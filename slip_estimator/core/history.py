@@ -121,8 +121,8 @@ class ForwardSpeedHistory:
         _, bg_y, bg_z = state.b_g.tolist()
         wy, wz = w_b[1] - bg_y, w_b[2] - bg_z
         _, ly, lz = self._l_bw_b
-        c1, c2, c3 = state.C_b_n[:, 0].tolist()
-        vN, vE, vD = state.v_eb_n.tolist()
+        C, (vN, vE, vD), _ = state.floats()
+        c1, c2, c3 = C[0], C[3], C[6]
         v_fwd = (c1 * vN + c2 * vE + c3 * vD) + wy * lz - wz * ly
         # The free speed: the filter's, less what the wheel aid did to it, with that
         # acceleration, so that a speed change over an interval can be taken without the aid
@@ -175,6 +175,11 @@ class WheelQueue:
             return False
         self._waiting.popleft()
         return True
+
+    def any_reached(self, stamp_ns: int) -> bool:
+        """True when a sample stamped at or before ``stamp_ns`` waits."""
+        waiting = self._waiting
+        return bool(waiting) and waiting[0].stamp_ns <= stamp_ns
 
     def reached(self, stamp_ns: int) -> Iterator[WheelSample]:
         """Take out, oldest first, the samples stamped at or before ``stamp_ns``."""

@@ -69,6 +69,9 @@ def _identity(n: int) -> np.ndarray:
     return eye
 
 
+_add_reduce = np.add.reduce
+
+
 def solve(S: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``np.linalg.solve(S, b)`` for one square ``S`` and a vector or matrix ``b``.
 
@@ -80,20 +83,24 @@ def solve(S: np.ndarray, b: np.ndarray) -> np.ndarray:
     """
     if _lapack is not None:
         x = (_lapack.solve1 if b.ndim == 1 else _lapack.solve)(S, b)
-        if math.isfinite(float(x.sum())):
+        if math.isfinite(float(_add_reduce(x, None))):  # x.sum() without its wrapper
             return x
     return np.linalg.solve(S, b)
 
 
 def symmetrize(P: np.ndarray) -> np.ndarray:
-    """``(P + P^T) / 2``."""
-    return 0.5 * (P + P.T)
+    """``(P + P^T) / 2`` (as ``0.5 * (P + P.T)``, halved in place: one array fewer)."""
+    S = P + P.T
+    S *= 0.5
+    return S
 
 
 def predict(P: np.ndarray, Phi: np.ndarray, Q: np.ndarray) -> np.ndarray:
     """Covariance propagation ``Phi P Phi^T + Q`` (eq. 13); the error state itself is zero
     between updates in a closed-loop filter, so only P is propagated."""
-    return symmetrize(Phi @ P @ Phi.T + Q)
+    A = Phi @ P @ Phi.T
+    A += Q
+    return symmetrize(A)
 
 
 def update(P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,

@@ -66,8 +66,9 @@ def mechanize_step(state: NavState, f_ib_b: Sequence[float], omega_ib_b: Sequenc
     (``radii_of_curvature``, ``gravity_down``) written out with the planet's cached constants
     and sharing ``sin L``: the same floating-point operations, without the calls.
     """
-    L, lam, h = state.llh.tolist()
-    vN, vE, vD = state.v_eb_n.tolist()
+    C, v, llh = state.floats()
+    L, lam, h = llh
+    vN, vE, vD = v
     ba_x, ba_y, ba_z = state.b_a.tolist()
     bg_x, bg_y, bg_z = state.b_g.tolist()
     fx, fy, fz = f_ib_b[0] - ba_x, f_ib_b[1] - ba_y, f_ib_b[2] - ba_z
@@ -87,7 +88,7 @@ def mechanize_step(state: NavState, f_ib_b: Sequence[float], omega_ib_b: Sequenc
     en_N, en_E, en_D = vE / RE, -vN / RN, -vE * sL / (cL * RE)
     # Attitude (eq. 2): body rotation exactly, nav-frame rotation to first order:
     # C+ = C- R(w tau) - [Omega x] C- tau, with Omega = omega_ie + omega_en.
-    c11, c12, c13, c21, c22, c23, c31, c32, c33 = state.C_b_n.ravel().tolist()
+    c11, c12, c13, c21, c22, c23, c31, c32, c33 = C
     r11, r12, r13, r21, r22, r23, r31, r32, r33 = rodrigues(wx, wy, wz)
     oN, oE, oD = (ie_N + en_N) * tau_s, en_E * tau_s, (ie_D + en_D) * tau_s
     n11 = c11 * r11 + c12 * r21 + c13 * r31 - (-oD * c21 + oE * c31)
@@ -119,7 +120,6 @@ def mechanize_step(state: NavState, f_ib_b: Sequence[float], omega_ib_b: Sequenc
     L1 = L + 0.5 * tau_s * (vN / RN + vN1 / (R_N + h1))
     R_E1 = R0 / math.sqrt(1.0 - e2 * math.sin(L1) ** 2)
     lam1 = lam + 0.5 * tau_s * (vE / (RE * cL) + vE1 / ((R_E1 + h1) * math.cos(L1)))
-    state.C_b_n = np.array((n11, n12, n13, n21, n22, n23, n31, n32, n33)).reshape(3, 3)
-    state.v_eb_n = np.array((vN1, vE1, vD1))
-    state.llh = np.array((L1, lam1, h1))
+    state.set_floats((n11, n12, n13, n21, n22, n23, n31, n32, n33), (vN1, vE1, vD1),
+                     (L1, lam1, h1))
     return fN, fE, fD

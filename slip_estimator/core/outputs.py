@@ -82,9 +82,8 @@ def odometry(stamp_ns: int, state: NavState, P: np.ndarray, omega_ib_b: np.ndarr
     On floats where numpy would cost more than the arithmetic; a test checks it against the
     matrix formulas."""
     st = state
-    L, lam, h = st.llh.tolist()
-    c11, c12, c13, c21, c22, c23, c31, c32, c33 = C = st.C_b_n.ravel().tolist()
-    vN, vE, vD = st.v_eb_n.tolist()
+    C, (vN, vE, vD), (L, lam, h) = st.floats()  # no arrays made between propagations
+    c11, c12, c13, c21, c22, c23, c31, c32, c33 = C
     lx, ly, lz = l_bw_b
     R_N, R_E = radii_of_curvature(planet, L)
     T_L, T_lam = 1.0 / (R_N + h), 1.0 / ((R_E + h) * math.cos(L))  # T_r(n)^p, T_h = -1

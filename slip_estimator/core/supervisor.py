@@ -97,6 +97,11 @@ class Supervisor:
         self.params = params
         self._recovery_ns = int(params.recovery_s * _NS)
         self._wheel_timeout_ns = int(params.wheel_timeout_s * _NS)
+        # Clipping thresholds (None: a range of 0 is not declared, nothing to check).
+        self._accel_clip_mps2 = (0.999 * params.accel_range_mps2
+                                 if params.accel_range_mps2 > 0.0 else None)
+        self._gyro_clip_rps = (0.999 * params.gyro_range_rps
+                               if params.gyro_range_rps > 0.0 else None)
         self.counters: dict[str, int] = dict.fromkeys((
             'imu_samples', 'imu_rejected', 'imu_gaps', 'imu_saturated', 'wheel_samples',
             'wheel_rejected', 'wheel_late', 'wheel_future', 'zupt', 'zaru', 'nhc', 'wheel',
@@ -125,12 +130,12 @@ class Supervisor:
     def imu_step(self, stamp_ns: int, dt_s: float, f_b: list[float], w_b: list[float],
                  aligned: bool) -> GapAction:
         """Clipping (counted, named) and the action an IMU step of ``dt_s`` calls for."""
-        p = self.params
-        if ((p.accel_range_mps2 > 0.0 and max(map(abs, f_b)) >= 0.999 * p.accel_range_mps2)
-                or (p.gyro_range_rps > 0.0
-                    and max(map(abs, w_b)) >= 0.999 * p.gyro_range_rps)):
+        accel_clip, gyro_clip = self._accel_clip_mps2, self._gyro_clip_rps
+        if ((accel_clip is not None and max(map(abs, f_b)) >= accel_clip)
+                or (gyro_clip is not None and max(map(abs, w_b)) >= gyro_clip)):
             self.counters['imu_saturated'] += 1
             self.event(stamp_ns, 'IMU at its measurement range (clipping)')
+        p = self.params
         if dt_s <= p.max_imu_gap_s:
             return GapAction.NONE
         self.counters['imu_gaps'] += 1

@@ -164,6 +164,36 @@ def test_mechanize_step_equals_the_literal_formulas(planet):
             == tuple(f_n.tolist())
 
 
+def test_nav_state_floats_and_arrays_are_one_state():
+    """The strapdown step writes floats; reading an attribute makes its array, which is then
+    the state (changed in place, the next step starts from the change). A chain of steps
+    with reads and in-place changes in between equals the literal step on arrays, to the
+    bit."""
+    rng = np.random.default_rng(17)
+    state = random_state(rng)
+    ref = state.copy()
+    for k in range(60):
+        f, w = rng.normal(0.0, 3.0, 3) + [0.0, 0.0, -9.8], rng.normal(0.0, 0.5, 3)
+        tau = rng.uniform(1e-3, 2e-2)
+        f_n = mechanize_step(state, f.tolist(), w.tolist(), tau, MARS)
+        ref.C_b_n, ref.v_eb_n, ref.llh, f_n_ref = mechanize_literal(ref, f, w, tau, MARS)
+        assert f_n == tuple(f_n_ref.tolist())
+        C, v, llh = state.floats()
+        assert list(C) == ref.C_b_n.ravel().tolist() and list(v) == ref.v_eb_n.tolist()
+        assert list(llh) == ref.llh.tolist()
+        if k % 3 == 1:  # an array read, then a change in place
+            state.v_eb_n[k % 3] += 0.25
+            ref.v_eb_n[k % 3] += 0.25
+        if k % 5 == 2:
+            state.C_b_n[0, 1] *= 1.0 + 1e-9
+            ref.C_b_n[0, 1] *= 1.0 + 1e-9
+            state.llh[2] -= 1.0
+            ref.llh[2] -= 1.0
+    for name in ('C_b_n', 'v_eb_n', 'llh', 'b_a', 'b_g'):
+        assert np.array_equal(getattr(state, name), getattr(ref, name)), name
+    assert repr(state) == repr(ref)
+
+
 # --- error model -------------------------------------------------------------------------------
 def system_matrix_blocks(state: NavState, f_ib_n, planet) -> np.ndarray:
     """F assembled block by block (paper eq. 31-38), as it was written before."""
@@ -526,6 +556,39 @@ def test_adapter_checks_slip_messages_when_the_frame_reads_as_nan():
         out = adapter.slip_messages([SlipEstimate(1, 0.1, 0.01, 1, 0.5, 0.01, 0.55)])
         assert adapter.dropped_non_finite[TOPIC_SLIP] == dropped
         assert len(out) == 2 - 2 * dropped
+
+
+# --- Kalman steps ------------------------------------------------------------------------------
+def _sym(A: np.ndarray) -> np.ndarray:
+    return 0.5 * (A + A.T)
+
+
+@pytest.mark.parametrize('consider', [None, [2, 14]])
+def test_kalman_steps_equal_the_literal_formulas(consider):
+    """predict and update (in-place sums, halving in place) give the textbook expressions to
+    the bit: ``sym(Phi P Phi^T + Q)``, Joseph form with the gain from np.linalg.solve."""
+    rng = np.random.default_rng(19)
+    eye = np.eye(N_ERR)
+    for m in (1, 2, 3):
+        for _ in range(60):
+            A = rng.normal(size=(N_ERR, N_ERR))
+            P = A @ A.T + rng.uniform(1e-6, 1.0) * eye
+            Phi = eye + rng.normal(0.0, 0.05, (N_ERR, N_ERR))
+            Q = np.diag(rng.uniform(1e-9, 1e-3, N_ERR))
+            assert np.array_equal(kalman.predict(P, Phi, Q), _sym(Phi @ P @ Phi.T + Q))
+            assert np.array_equal(kalman.symmetrize(P + A), _sym(P + A))
+            H, nu = rng.normal(size=(m, N_ERR)), rng.normal(size=m)
+            R = np.diag(rng.uniform(1e-4, 1.0, m))
+            dx, P_new, rec = kalman.update(P, nu, H, R, consider=consider)
+            PHt = P @ H.T
+            S = _sym(H @ PHt + R)
+            K = np.linalg.solve(S, PHt.T).T
+            if consider is not None:
+                K[consider, :] = 0.0
+            IKH = eye - K @ H
+            assert np.array_equal(rec.S, S) and rec.nis == float(nu @ np.linalg.solve(S, nu))
+            assert np.array_equal(dx, K @ nu)
+            assert np.array_equal(P_new, _sym(IKH @ P @ IKH.T + K @ R @ K.T))
 
 
 # --- Kalman solve ------------------------------------------------------------------------------
