@@ -6,8 +6,8 @@ Rules (pure, no IO):
 * topics, wheel input and joint names come from the bag;
 * the mounting is the measured one when decided (saying so when the declaration differs), the
   declared one otherwise (saying it could not be decided): never a guess;
-* a parameter the user declared stays declared (the measured figure is reported beside it),
-  except the start pose, which a GNSS fix measures better than any declaration;
+* a parameter the user declared stays declared (the measured figure is reported beside it,
+  and a check line when they disagree);
 * a parameter not declared takes the measured figure where there is one (noise never below the
   defaults: a short rest misses vibration, as the node's own reading of message covariances),
   else the default, said in the report.
@@ -25,6 +25,7 @@ from slip_estimator.robot_setup.measure import Measured
 from slip_estimator.robot_setup.scan import Scan
 
 MAX_LAG_S = 1.0
+START_KEYS = ('initial_latitude_deg', 'initial_longitude_deg', 'initial_height_m')
 MIN_MEASURED_LAG_S = 0.005
 
 
@@ -128,17 +129,28 @@ def propose(declared: Params, declared_keys: set[str], scan: Scan, m: Measured) 
     start = m.start
     if start.llh_deg_deg_m is not None:
         lat, lon, h = start.llh_deg_deg_m
-        values.update(initial_latitude_deg=lat, initial_longitude_deg=lon, initial_height_m=h)
-        for k in ('initial_latitude_deg', 'initial_longitude_deg', 'initial_height_m'):
-            src[k] = f'measured: first GNSS fix ({scan.gnss_topic})'
+        for k, v in zip(START_KEYS, (lat, lon, h)):
+            if k not in declared_keys:
+                values[k] = v
+                src[k] = f'measured: first GNSS fix ({scan.gnss_topic})'
+        if 'initial_latitude_deg' in declared_keys and abs(
+                declared.initial_latitude_deg - lat) + abs(
+                declared.initial_longitude_deg - lon) > 1e-3:
+            checks.append(f'declared start {declared.initial_latitude_deg:.5f}, '
+                          f'{declared.initial_longitude_deg:.5f} deg is not the first fix '
+                          f'{lat:.5f}, {lon:.5f} deg (kept)')
     else:
         checks.append('no GNSS fix: initial latitude/height are '
                       f'{src["initial_latitude_deg"]} (they set gravity and the earth rate)')
     if start.heading is not None:
         hd = start.heading
-        values['initial_heading_deg'] = round(hd.heading_deg, 2)
-        src['initial_heading_deg'] = (f'measured: GNSS course over {hd.distance_m:.1f} m '
-                                      f'({hd.n_fixes} fixes) less the gyro turn')
+        if 'initial_heading_deg' not in declared_keys:
+            values['initial_heading_deg'] = round(hd.heading_deg, 2)
+            src['initial_heading_deg'] = (f'measured: GNSS course over {hd.distance_m:.1f} m '
+                                          f'({hd.n_fixes} fixes) less the gyro turn')
+        elif abs(math.remainder(hd.heading_deg - declared.initial_heading_deg, 360.0)) > 5.0:
+            checks.append(f'declared initial heading {declared.initial_heading_deg:.1f} deg, '
+                          f'GNSS track says {hd.heading_deg:.1f} deg (kept the declared)')
     elif start.llh_deg_deg_m is not None:
         checks.append(f'initial heading not measured ({start.why})')
     return Proposal(declared.replace(**values), src, problems, checks)

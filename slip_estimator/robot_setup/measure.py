@@ -47,9 +47,12 @@ from slip_estimator.robot_setup.signals import (
 
 MIN_LAG_CORRELATION = 0.8
 """Below this correlation of yaw rate and wheel differential the lag is not measured."""
-STRAIGHT_RPS = 0.03
-"""Yaw rates below this are a straight drive."""
+STRAIGHT_DEG = 10.0
+"""A piece of drive turning less than this is straight."""
 MIN_RUN_S = 4.0
+HEADING_MIN_DISTANCE_M = 1.0
+"""The course of the first straight drive is fitted over at least this much track (a gyro
+bias not yet known may end the straight early; a consumer GNSS needs the length)."""
 LAG_GRID_S = 0.002
 """Grid of the interpolated yaw rate for the lag (the lag's resolution is its step, 5 ms)."""
 MIN_RUN_SPEED_MPS = 0.2
@@ -175,24 +178,27 @@ def measure_track(imu: ImuSeries, wheels: WheelSeries, yaw_rps: np.ndarray, lag_
 
 def straight_runs(wheels: WheelSeries, imu: ImuSeries, yaw_rps: np.ndarray
                   ) -> list[tuple[float, float]]:
-    """Intervals of at least ``MIN_RUN_S`` driving straight above ``MIN_RUN_SPEED_MPS``."""
+    """Pieces of about ``MIN_RUN_S`` driving above ``MIN_RUN_SPEED_MPS`` whose heading
+    changes by less than ``STRAIGHT_DEG`` (the chord of such an arc is within 0.2 % of it)."""
     tq = np.arange(wheels.t_s[0], wheels.t_s[-1], 0.1)
     v = window_mean(wheels.t_s, wheels.v_mps, tq, 0.5)
-    w = window_mean(imu.t_s, yaw_rps, tq, 0.5)
-    ok = (v > MIN_RUN_SPEED_MPS) & (np.abs(w) < STRAIGHT_RPS)
+    psi = np.concatenate([[0.0], np.cumsum(0.5 * (yaw_rps[1:] + yaw_rps[:-1])
+                                           * np.diff(imu.t_s))])
+    moving = v > MIN_RUN_SPEED_MPS
     runs, start = [], None
-    for k, good in enumerate(ok):
+    for k, good in enumerate(moving):
         if good and start is None:
             start = tq[k]
         elif not good and start is not None:
-            if tq[k] - start >= MIN_RUN_S:
-                runs.append((start, tq[k]))
+            runs.append((start, tq[k - 1]))
             start = None
-    if start is not None and tq[-1] - start >= MIN_RUN_S:
+    if start is not None:
         runs.append((start, tq[-1]))
-    # Pieces of about MIN_RUN_S: a run may cross ground of another slip at another speed.
-    return [(a + k * (b - a) / n, a + (k + 1) * (b - a) / n) for a, b in runs
-            for n in [int((b - a) // MIN_RUN_S)] for k in range(n)]
+    pieces = [(a + k * (b - a) / n, a + (k + 1) * (b - a) / n) for a, b in runs
+              for n in [int((b - a) // MIN_RUN_S)] for k in range(n)]
+    turn = [abs(math.degrees(float(np.interp(b, imu.t_s, psi) - np.interp(a, imu.t_s, psi))))
+            for a, b in pieces]
+    return [p for p, deg in zip(pieces, turn) if deg < STRAIGHT_DEG]
 
 
 def measure_radius_ratio(wheels: WheelSeries, gnss: GnssSeries | None,
@@ -232,7 +238,8 @@ def measure_start(imu: ImuSeries, wheels: WheelSeries, gnss: GnssSeries | None,
         return Start(llh, None, 'no fix after the robot starts moving')
     try:
         heading = heading_from_track(imu.t_s, -yaw_rps, gnss.t_s, gnss.enu_m, t_motion,
-                                     t_ref_s=float(imu.t_s[0]))
+                                     t_ref_s=float(imu.t_s[0]),
+                                     min_distance_m=HEADING_MIN_DISTANCE_M)
     except (ValueError, np.linalg.LinAlgError, IndexError):
         return Start(llh, None, 'the first drive has too few fixes for a course')
     if heading.distance_m < 1.0:
