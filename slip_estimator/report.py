@@ -274,7 +274,8 @@ def evaluate_main(argv: list[str] | None = None) -> int:
         Path(args.json).write_text(text)
     (report_dir / 'summary.txt').write_text(summary_text(ev) + '\n')
     if args.no_plots:
-        print(f'report: {report_dir} (metrics.json, summary.txt)')
+        if not args.report_dir:  # say where the default put it
+            print(f'report: {report_dir} (metrics.json, summary.txt)')
     else:
         try:
             from slip_estimator.report_figures import write_figures
