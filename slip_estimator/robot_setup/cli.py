@@ -41,7 +41,7 @@ def setup_main(argv: list[str] | None = None) -> int:
         if args.declared:
             declared = load_params(args.declared)
             keys = set(read_param_values(args.declared))
-        scan = scan_bag(args.bag, declared)
+        scan = scan_bag(args.bag, declared, keys)
         measured = measure(scan.imu, scan.wheels, scan.gnss, declared.track_width)
         proposal = propose(declared, keys, scan, measured)
         args.out.write_text(params_text(proposal, str(args.bag)))

@@ -25,6 +25,8 @@ from slip_estimator.robot_setup.measure import Measured
 from slip_estimator.robot_setup.scan import Scan
 
 MAX_LAG_S = 1.0
+RADIUS_RATIO_CHECK = 0.15
+"""A GNSS/rim speed ratio further than this from 1 is named (more than steady slip)."""
 START_KEYS = ('initial_latitude_deg', 'initial_longitude_deg', 'initial_height_m')
 MIN_MEASURED_LAG_S = 0.005
 
@@ -123,7 +125,13 @@ def propose(declared: Params, declared_keys: set[str], scan: Scan, m: Measured) 
         values['wheel_radius'] = round(declared.wheel_radius * ratio.value, 4)
         src['wheel_radius'] = _fig('measured: default x GNSS/rim speed on straight runs',
                                    ratio, '')
-    if 'wheel_radius' not in values and 'wheel_radius' not in declared_keys:
+    elif ratio.ok and abs(ratio.value - 1.0) > RADIUS_RATIO_CHECK:
+        checks.append(f'GNSS speed / rim speed is {ratio.value:.2f} on straight runs: the '
+                      f'effective radius is {declared.wheel_radius * ratio.value:.3f} m against '
+                      f'{declared.wheel_radius} m ({src["wheel_radius"]}): check the radius, or '
+                      'the ground was soft')
+    if ('wheel_radius' not in values and 'wheel_radius' not in declared_keys
+            and scan.wheel_input == 'joint_states'):
         checks.append('wheel_radius is the default 0.12 m (not declared, not measured): '
                       'declare it (--declared FILE)')
     start = m.start

@@ -90,22 +90,28 @@ def _stats(topic: str, msgtype: str, stamps: list[int], logs: list[int]) -> Topi
                       int(np.sum(d < 0)), offset)
 
 
-def _pick_wheels(topics: dict[str, str], declared: Params, joint_msg: dict[str, object]
-                 ) -> tuple[str, str]:
-    """(wheel topic, wheel_input): the declared one when the bag has it, else joint states
-    naming left and right wheels, else the wheels' odometry."""
+def _pick_wheels(topics: dict[str, str], declared: Params, joint_msg: dict[str, object],
+                 keys: set[str] | None) -> tuple[str, str]:
+    """(wheel topic, wheel_input): the declared one when the bag has it; else joint states
+    naming left and right wheels when the wheel radius is declared (they need it), the wheels'
+    odometry (in m/s already), joint states whatever the radius (``keys``: the parameters
+    declared, None: all)."""
     want = (declared.joint_states_topic if declared.wheel_input == 'joint_states'
             else declared.wheel_odometry_topic)
-    if topics.get(want) == (JOINTS if declared.wheel_input == 'joint_states' else ODOM):
+    input_declared = keys is None or bool(keys & {'wheel_input', 'joint_states_topic',
+                                                  'wheel_odometry_topic'})
+    if input_declared and topics.get(want) == (JOINTS if declared.wheel_input == 'joint_states'
+                                               else ODOM):
         return want, declared.wheel_input
-    for t, m in joint_msg.items():
-        sides = {wheel_side(n) for n in m.name}
-        if {'left', 'right'} <= sides:
-            return t, 'joint_states'
-    odoms = [t for t, ty in topics.items() if ty == ODOM
-             and not any(w in t.lower() for w in NOT_WHEELS)]
+    joints = [t for t, m in joint_msg.items() if {'left', 'right'} <= set(map(wheel_side,
+                                                                             m.name))]
+    odoms = sorted((t for t, ty in topics.items() if ty == ODOM
+                    and not any(w in t.lower() for w in NOT_WHEELS)),
+                   key=lambda t: ('wheel' not in t, t))
+    if joints and (keys is None or 'wheel_radius' in keys or not odoms):
+        return joints[0], 'joint_states'
     if odoms:
-        return sorted(odoms, key=lambda t: ('wheel' not in t, t))[0], 'odometry'
+        return odoms[0], 'odometry'
     have = ', '.join(f'{t} [{ty}]' for t, ty in sorted(topics.items()))
     raise SetupError(f'no wheel topic (JointState naming left/right wheel joints, or wheel '
                      f'Odometry) in the bag; it has: {have}')
@@ -121,8 +127,10 @@ def joint_names(msg: object, declared: list[str]) -> list[str]:
     return wheels or sided
 
 
-def scan_bag(path: str | Path, declared: Params) -> Scan:
-    """Find and read the IMU, wheel and GNSS topics of a bag."""
+def scan_bag(path: str | Path, declared: Params, declared_keys: set[str] | None = None
+             ) -> Scan:
+    """Find and read the IMU, wheel and GNSS topics of a bag (``declared_keys``: the
+    parameters the user set; None: all of them)."""
     topics = bag_topics(path)
     imus = [t for t, ty in topics.items() if ty == IMU]
     if not imus:
@@ -140,7 +148,7 @@ def scan_bag(path: str | Path, declared: Params) -> Scan:
     imu_topic = (declared.imu_topic if declared.imu_topic in imus
                  else max(imus, key=lambda t: len(msgs[t])))
     first_joint = {t: msgs[t][0] for t in wanted if topics[t] == JOINTS and msgs[t]}
-    wheel_topic, wheel_input = _pick_wheels(topics, declared, first_joint)
+    wheel_topic, wheel_input = _pick_wheels(topics, declared, first_joint, declared_keys)
     notes = [f'{t} [TwistStamped]: wheel twist is not an input of the estimator (publish '
              'nav_msgs/Odometry or JointState)' for t, ty in topics.items() if ty == TWIST]
     imu = _imu_series(msgs[imu_topic])

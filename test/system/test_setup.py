@@ -226,3 +226,17 @@ def test_bag_without_imu_is_one_line(tmp_path, capsys) -> None:
     assert setup_main([str(bag), '--out', str(tmp_path / 'x.yaml')]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and 'no sensor_msgs/Imu topic' in err
+
+
+def test_measuring_modules_import_no_ros() -> None:
+    """The measuring maths (signals, mounting, heading, measure) import numpy and the core
+    only: the bag IO is around them."""
+    import subprocess
+    import sys
+
+    code = ('import sys; import slip_estimator.robot_setup.measure; '
+            'print(sorted(m for m in sys.modules if m.split(".")[0] in '
+            '("rclpy", "rosbags", "sensor_msgs", "nav_msgs")))')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == '[]'
