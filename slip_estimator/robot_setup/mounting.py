@@ -146,7 +146,7 @@ def forward_angle(imu: ImuSeries, wheels: WheelSeries, up_imu: np.ndarray, lag_s
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(up, e1)
     t0, t1 = max(imu.t_s[0], wheels.t_s[0]) + 1.0, min(imu.t_s[-1], wheels.t_s[-1]) - 1.0
-    if t1 - t0 < 4 * HIGH_PASS_S / 4:
+    if t1 - t0 < HIGH_PASS_S:
         return missing('drive too short for the forward axis'), e1, e2
     tq = np.arange(t0, t1, 0.1)
     v = window_mean(wheels.t_s - lag_s, wheels.v_mps, tq, SMOOTH_S)
