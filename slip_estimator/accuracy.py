@@ -198,7 +198,8 @@ def accuracy_main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(
         prog='slip-estimator accuracy',
         description='Score the slip model over seeded simulated drives and the real '
-                    'test17run log with injected slip (through the core, declared parameters).')
+                    'test17run log with injected slip (through the core, declared parameters).',
+        epilog='example: slip-estimator accuracy --seeds 3')
     ap.add_argument('--families', default=','.join(FAMILIES),
                     help='comma-separated drive families (default: %(default)s)')
     ap.add_argument('--seeds', type=int, default=12, help='seeds 0..N-1 per family')

@@ -4,6 +4,7 @@ Subcommands
 -----------
 demo               simulate the embedded default drive, replay it through the node, evaluate
 simulate           write a simulated rover drive (MCAP bag + params file)
+setup              measure a robot on its bag, write its params file (topics, mounting, noise)
 replay             play a bag through the node code, write its outputs to an MCAP bag
 evaluate           compare a replay output with truth (simulator truth or GNSS)
 import-pathfinder  convert a Pathfinder .mat log to an MCAP bag + params file
@@ -22,7 +23,8 @@ from pathlib import Path
 def _demo(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog='slip-estimator demo', description=(
         'Simulate the embedded default rover drive, replay it through the node and print the '
-        'slip confusion matrix and the drift.'))
+        'slip confusion matrix and the drift.'),
+        epilog='example: slip-estimator demo --scenario short --out demo_output')
     parser.add_argument('--out', default='demo_output', help='output folder (default: %(default)s)')
     parser.add_argument('--seed', type=int, default=0, help='trajectory seed')
     parser.add_argument('--scenario', choices=('default', 'short', 'mixed', 'patches', 'rough'),
@@ -56,7 +58,10 @@ def _demo(argv: list[str]) -> int:
 
 
 def _default_config(argv: list[str]) -> int:
-    argparse.ArgumentParser(prog='slip-estimator default-config').parse_args(argv)
+    argparse.ArgumentParser(
+        prog='slip-estimator default-config',
+        description='Print the default parameter file, generated from the parameter schema.',
+        epilog='example: slip-estimator default-config > my_robot.yaml').parse_args(argv)
     from slip_estimator.paramfile import render_default_config
     sys.stdout.write(render_default_config())
     return 0
@@ -83,6 +88,7 @@ installed package."""
 COMMANDS = {
     'demo': _demo,
     'simulate': _lazy('slip_estimator.sim.bag', 'simulate_main'),
+    'setup': _lazy('slip_estimator.robot_setup.cli', 'setup_main'),
     'replay': _lazy('slip_estimator.replay', 'replay_main'),
     'evaluate': _lazy('slip_estimator.report', 'evaluate_main'),
     'import-pathfinder': _lazy('slip_estimator.pathfinder.cli', 'import_main'),

@@ -170,6 +170,14 @@ def input_sources(expected: Iterable[str], remap: dict[str, str]) -> dict[str, s
     return source
 
 
+def with_params_remap(adapter: SlipEstimatorAdapter, remap: dict[str, str]) -> dict[str, str]:
+    """``remap`` (bag topic -> input topic) completed by the topic parameters
+    (``imu_topic``, ...) for the inputs it does not map (a ``-r`` remap wins)."""
+    given = set(remap.values())
+    return {**{src: dst for dst, src in adapter.input_sources.items()
+               if src != dst and dst not in given}, **remap}
+
+
 def missing_inputs(adapter: SlipEstimatorAdapter, topics: dict[str, str],
                    remap: dict[str, str]) -> list[str]:
     """Descriptions of the expected inputs the bag (``topics``: name -> type) does not have."""
@@ -215,7 +223,8 @@ def replay_bag(input_bag: str | Path, params: Params, output_bag: str | Path, *,
     t0 = clock()
     adapter = (SlipEstimatorAdapter(params) if estimator_factory is None
                else SlipEstimatorAdapter(params, estimator_factory))
-    rename = {src: dst for dst, src in input_sources(adapter.input_types, remap or {}).items()}
+    remap = with_params_remap(adapter, remap or {})
+    rename = {src: dst for dst, src in input_sources(adapter.input_types, remap).items()}
     messages = (BagMessage(rename[m.topic], m.msgtype, m.log_time_ns, m.msg)
                 for m in read_messages(input_bag, set(rename)))
     ordered = ReorderWindow(reorder_window_s).order(messages)
@@ -310,7 +319,9 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog='slip-estimator replay',
         description='Run the slip estimator over a bag (rosbag2 MCAP/sqlite3 or ROS 1 .bag) '
-                    'and write its outputs to MCAP.')
+                    'and write its outputs to MCAP.',
+        epilog='example: slip-estimator replay my_robot.bag --params-file my_robot.yaml '
+               '-o estimate')
     parser.add_argument('input_bag', type=Path,
                         help='input bag: rosbag2 folder, .mcap, .db3 or ROS 1 .bag')
     parser.add_argument('--params-file', type=Path,
@@ -339,6 +350,7 @@ def replay_main(argv: list[str] | None = None) -> int:
             raise ValueError(f'output {args.output} exists')
         topics = bag_topics(args.input_bag)
         adapter = SlipEstimatorAdapter(params)
+        remap = with_params_remap(adapter, remap)
         missing = missing_inputs(adapter, topics, remap)
         if len(missing) == len(adapter.input_types):
             raise ValueError(f'{args.input_bag}: ' + describe_inputs(adapter, topics, missing))

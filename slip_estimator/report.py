@@ -198,19 +198,31 @@ def summary_text(ev: RunEvaluation) -> str:
     return '\n'.join(lines)
 
 
+def default_report_dir(estimate: Path) -> Path:
+    """Where ``evaluate`` writes without ``--report-dir``: ``ESTIMATE_report`` beside the
+    estimate bag (a folder, or a file such as ``run.mcap``)."""
+    estimate = Path(estimate)
+    stem = estimate.name if estimate.is_dir() else estimate.stem
+    return estimate.parent / f'{stem}_report'
+
+
 def evaluate_main(argv: list[str] | None = None) -> int:
     """Run ``slip-estimator evaluate``; returns the exit code.
 
-    ``slip-estimator evaluate --input IN --estimate OUT [--params F] --report-dir D [--json F]``
+    ``slip-estimator evaluate --input IN --estimate OUT [--params F] [--report-dir D] [--json F]``
+    (without ``--report-dir``: :func:`default_report_dir`)
     """
     ap = argparse.ArgumentParser(prog='slip-estimator evaluate',
                                  description='Evaluate estimator output against truth '
-                                             '(simulation truth or GNSS).')
+                                             '(simulation truth or GNSS).',
+                                 epilog='example: slip-estimator evaluate --input my_robot.bag '
+                                        '--estimate estimate --params my_robot.yaml')
     ap.add_argument('--input', required=True, help='input bag (sensors, truth or /gnss/fix)')
     ap.add_argument('--estimate', required=True, help='estimator output bag (replay)')
     ap.add_argument('--params', help='params file used for the run (wheel radius, joints, '
                                      'origin)')
-    ap.add_argument('--report-dir', required=True, help='folder for figures and metrics.json')
+    ap.add_argument('--report-dir', help='folder for figures and metrics.json (default: '
+                                         'ESTIMATE_report next to the estimate bag)')
     ap.add_argument('--json', help='also write the metrics JSON here')
     ap.add_argument('--gnss-window', type=float, default=1.0,
                     help='GNSS velocity fit window, s (default 1.0, for 10 Hz RTK)')
@@ -250,7 +262,8 @@ def evaluate_main(argv: list[str] | None = None) -> int:
         print(f'slip-estimator evaluate: {exc}', file=sys.stderr)
         return 2
     print(summary_text(ev))
-    report_dir = Path(args.report_dir)
+    report_dir = (Path(args.report_dir) if args.report_dir
+                  else default_report_dir(Path(args.estimate)))
     report_dir.mkdir(parents=True, exist_ok=True)
     metrics = ev.to_dict()
     metrics['input'] = str(args.input)
@@ -260,7 +273,10 @@ def evaluate_main(argv: list[str] | None = None) -> int:
     if args.json:
         Path(args.json).write_text(text)
     (report_dir / 'summary.txt').write_text(summary_text(ev) + '\n')
-    if not args.no_plots:
+    if args.no_plots:
+        if not args.report_dir:  # say where the default put it
+            print(f'report: {report_dir} (metrics.json, summary.txt)')
+    else:
         try:
             from slip_estimator.report_figures import write_figures
 

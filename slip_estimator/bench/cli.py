@@ -27,7 +27,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog='slip-estimator bench',
         description='Measure core throughput, replay speed, the live node over DDS, memory '
-                    'and scaling on this machine.')
+                    'and scaling on this machine.',
+        epilog='example: slip-estimator bench --only core --json bench.json')
     ap.add_argument('--only', default=','.join(SECTIONS),
                     help='comma-separated sections to run (default: %(default)s)')
     ap.add_argument('--json', type=Path, help='also write every figure to this JSON file')

@@ -193,6 +193,12 @@ class Params:
                                     'IMU sample)', 0.0, 1000.0)
     diagnostics_period_s: float = _node(1.0, 's', 'period of /diagnostics (data time)',
                                         0.1, 60.0)
+    imu_topic: str = _node('/imu/data', '', 'bag/robot topic of the IMU (sensor_msgs/Imu), read '
+                           'as /imu/data (a --ros-args -r remap wins)')
+    joint_states_topic: str = _node('/joint_states', '', 'topic of the wheel joint states '
+                                    '(wheel_input joint_states), read as /joint_states')
+    wheel_odometry_topic: str = _node('/wheel/odometry', '', 'topic of the wheel odometry '
+                                      '(wheel_input odometry), read as /wheel/odometry')
     odom_frame: str = _node('odom', '', 'frame_id of the odometry output')
     base_frame: str = _node('base_link', '', 'child_frame_id of the odometry output')
 

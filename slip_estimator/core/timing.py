@@ -38,12 +38,12 @@ def correlation_vs_lag(t_fast_s: np.ndarray, x_fast: np.ndarray, t_slow_s: np.nd
 
 
 def best_lag(t_fast_s: np.ndarray, x_fast: np.ndarray, t_slow_s: np.ndarray,
-             y_slow: np.ndarray, max_lag_s: float = 0.4, step_s: float = 0.005
-             ) -> tuple[float, float]:
+             y_slow: np.ndarray, max_lag_s: float = 0.4, step_s: float = 0.005,
+             window_s: float = 0.1) -> tuple[float, float]:
     """(lag s, correlation) at the correlation peak over ``[-max_lag_s, max_lag_s]``; (NaN,
     NaN) when no lag gives a correlation."""
     lags = np.arange(-max_lag_s, max_lag_s + 1e-9, step_s)
-    corr = correlation_vs_lag(t_fast_s, x_fast, t_slow_s, y_slow, lags)
+    corr = correlation_vs_lag(t_fast_s, x_fast, t_slow_s, y_slow, lags, window_s)
     if not np.isfinite(corr).any():
         return float('nan'), float('nan')
     k = int(np.nanargmax(corr))

@@ -5,18 +5,18 @@ for a yaw rate is larger than the geometric track predicts, rim_R - rim_L = B_ef
 (FLU yaw rate), with B_eff 1.5-1.9 times the wheel spacing on real robots (the multiplier
 users hand-tune in diff-drive controllers). B_eff is the least-squares ratio over turning
 samples, with a fading memory so that it follows the ground; a fit whose correlation is
-below ``_MIN_CORRELATION`` (the differential does not follow the yaw rate: wheels lifted,
+below ``MIN_CORRELATION`` (the differential does not follow the yaw rate: wheels lifted,
 tracks slipping, wrong joint sides) is no width, and the declared one stays. Only the
 standard library is used.
 """
 from __future__ import annotations
 
-_MIN_RATE_RPS = 0.1
+MIN_RATE_RPS = 0.1
 """Below this yaw rate the differential is encoder noise, not a turn."""
 _MEMORY = 300
 """Turning samples the estimate remembers (30 s of turning at 10 Hz)."""
-_MIN_SAMPLES = 20
-_MIN_CORRELATION = 0.8
+MIN_SAMPLES = 20
+MIN_CORRELATION = 0.8
 _RATIO_BOUNDS = (0.5, 3.0)
 """An estimate outside these multiples of the declared track is a fault, not a robot."""
 _UNFITTED_RELATIVE_STD = 0.5
@@ -35,7 +35,7 @@ class TrackWidthEstimator:
     def add(self, yaw_rate_flu_rps: float, rim_right_minus_left_mps: float | None) -> None:
         """One yaw rate and the wheels' right minus left rim speed (None: not known, ignored)."""
         w = yaw_rate_flu_rps
-        if rim_right_minus_left_mps is None or abs(w) < _MIN_RATE_RPS:
+        if rim_right_minus_left_mps is None or abs(w) < MIN_RATE_RPS:
             return
         self.samples += 1
         k = 1.0 / min(self.samples, _MEMORY)
@@ -54,7 +54,7 @@ class TrackWidthEstimator:
     @property
     def fitted(self) -> bool:
         """True once enough turning, correlated with the differential, was seen."""
-        return self.samples >= _MIN_SAMPLES and self.correlation >= _MIN_CORRELATION
+        return self.samples >= MIN_SAMPLES and self.correlation >= MIN_CORRELATION
 
     @property
     def relative_var(self) -> float:

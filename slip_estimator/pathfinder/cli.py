@@ -13,7 +13,10 @@ def import_main(argv: list[str] | None = None) -> int:
     """Run ``slip-estimator import-pathfinder FILE.mat --output BAG [--params-out FILE]``."""
     ap = argparse.ArgumentParser(prog='slip-estimator import-pathfinder',
                                  description='Convert a WVU Pathfinder .mat log to an MCAP bag '
-                                             'and a params file; prints what was verified.')
+                                             'and a params file; prints what was verified.',
+                                 epilog='example: slip-estimator import-pathfinder '
+                                        '../shared/data/pathfinder/s5t1.mat --output s5t1 '
+                                        '--params-out s5t1.yaml')
     ap.add_argument('mat', help='Pathfinder .mat file (MATLAB v7.3)')
     ap.add_argument('--output', required=True, help='output bag directory (must not exist)')
     ap.add_argument('--params-out', help='write a ROS 2 params file for this log')

@@ -9,35 +9,13 @@ import numpy as np
 
 from slip_estimator.core.planet import EARTH, llh_to_local_enu
 from slip_estimator.pathfinder.log import PathfinderLog
+from slip_estimator.robot_setup.heading import HeadingEstimate, heading_from_track
 from slip_estimator.pathfinder.rover import (
     ACCEL_VRW_MPS_PER_SQRT_S,
     GYRO_ARW_RAD_PER_SQRT_S,
     WHEEL_JOINT_NAMES,
     WHEEL_RADIUS_M,
 )
-
-
-@dataclass(frozen=True)
-class HeadingEstimate:
-    """Initial heading from the GNSS track of the first straight drive.
-
-    Attributes
-    ----------
-    heading_deg : heading of base_link x at standstill, clockwise from north, deg [0, 360).
-    course_deg : GNSS course of the fitted segment, deg.
-    gyro_heading_change_deg : gyro heading change from standstill to the segment midpoint, deg.
-    t_start_s, t_end_s : fitted segment (Unix s).
-    distance_m : GNSS distance covered by the segment, m.
-    n_fixes : number of GNSS fixes in the fit.
-    """
-
-    heading_deg: float
-    course_deg: float
-    gyro_heading_change_deg: float
-    t_start_s: float
-    t_end_s: float
-    distance_m: float
-    n_fixes: int
 
 
 @dataclass(frozen=True)
@@ -158,27 +136,9 @@ def estimate_initial_heading(log: PathfinderLog, max_turn_deg: float = 2.0,
     rest = ti < t0 - 0.5
     gz = log.omega_ib_imu[:, 2] - (log.omega_ib_imu[rest, 2].mean() if rest.any() else 0.0)
     # z down: +Gz is a clockwise (heading-increasing) turn.
-    psi = np.concatenate([[0.0], np.cumsum(0.5 * (gz[1:] + gz[:-1]) * np.diff(ti))])
-    psi -= np.interp(t0, ti, psi)
-    enu = gnss_enu(log)
-    tg = log.gnss_t_s
-    after = np.where(tg >= t0)[0]
-    i_end = after[0]
-    for i in after:
-        d = np.linalg.norm(enu[i, :2] - enu[after[0], :2])
-        turned = abs(math.degrees(np.interp(tg[i], ti, psi))) > max_turn_deg
-        if d > max_distance_m or (turned and d >= min_distance_m):
-            break
-        i_end = i
-    seg = after[after <= i_end]
-    xy = enu[seg, :2]
-    _, _, vt = np.linalg.svd(xy - xy.mean(axis=0))
-    direction = vt[0] if np.dot(xy[-1] - xy[0], vt[0]) >= 0 else -vt[0]
-    course = math.degrees(math.atan2(direction[0], direction[1])) % 360.0
-    t_mid = 0.5 * (tg[seg[0]] + tg[seg[-1]])
-    dpsi = math.degrees(float(np.interp(t_mid, ti, psi)))
-    return HeadingEstimate((course - dpsi) % 360.0, course, dpsi, float(tg[seg[0]]),
-                           float(tg[seg[-1]]), float(np.linalg.norm(xy[-1] - xy[0])), len(seg))
+    return heading_from_track(ti, gz, log.gnss_t_s, gnss_enu(log), t0,
+                              max_turn_deg=max_turn_deg, min_distance_m=min_distance_m,
+                              max_distance_m=max_distance_m)
 
 
 def measured_noise_density(log: PathfinderLog) -> tuple[float, float]:

@@ -132,6 +132,15 @@ class SlipEstimatorAdapter:
         return {TOPIC_IMU: Imu, self.wheel_topic: wheel_type}
 
     @property
+    def input_sources(self) -> dict[str, str]:
+        """The topic each input is read from (``imu_topic`` and the wheel topic parameter),
+        by the input topic name the adapter takes it under."""
+        p = self.params
+        source = {TOPIC_IMU: p.imu_topic, TOPIC_JOINT_STATES: p.joint_states_topic,
+                  TOPIC_WHEEL_ODOMETRY: p.wheel_odometry_topic}
+        return {topic: source[topic] for topic in self.input_types}
+
+    @property
     def pending_params(self) -> Params | None:
         """Accepted parameters waiting for the next reset, if any."""
         return self._pending

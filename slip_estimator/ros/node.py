@@ -188,9 +188,10 @@ class SlipEstimatorNode(Node):
         for topic, cls in self.adapter.input_types.items():
             depth = IMU_QUEUE_DEPTH if topic == TOPIC_IMU else WHEEL_QUEUE_DEPTH
             self._subs.append(self.create_subscription(
-                cls, topic, self._callback(topic), input_qos(depth)))
+                cls, self.adapter.input_sources[topic], self._callback(topic),
+                input_qos(depth)))
         self.get_logger().info(
-            f'subscribed to {", ".join(self.adapter.input_types)}; publishing '
+            f'subscribed to {", ".join(self.adapter.input_sources.values())}; publishing '
             f'{", ".join(OUTPUT_TYPES)}')
 
         self._last_imu_wall = time.monotonic()

@@ -294,7 +294,9 @@ def simulate_main(argv: list[str] | None = None) -> int:
     """``slip-estimator simulate``: run a seeded scenario and write the bag (and params)."""
     ap = argparse.ArgumentParser(prog='slip-estimator simulate',
                                  description='Simulate a skid-steer rover (IMU, wheels, GNSS, '
-                                 'truth) and write an MCAP rosbag2 bag.')
+                                 'truth) and write an MCAP rosbag2 bag.',
+                                 epilog='example: slip-estimator simulate --robot fifty_hz '
+                                        '-o drive --params-out drive.params.yaml')
     ap.add_argument('--seed', type=int, default=0, help='truth (trajectory/terrain) seed')
     ap.add_argument('--noise-seed', type=int, default=None,
                     help='sensor noise seed (default: seed + 1)')

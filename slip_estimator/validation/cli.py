@@ -14,7 +14,8 @@ def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog='slip-estimator validate',
         description='Model-validation study on the real Pathfinder logs: replay configurations '
-                    'A (paper) .. E (ours), evaluate, write a Markdown report with figures.')
+                    'A (paper) .. E (ours), evaluate, write a Markdown report with figures.',
+        epilog='example: slip-estimator validate --out docs/validation.md --jobs 2')
     ap.add_argument('--out', required=True, type=Path, help='Markdown report to write')
     ap.add_argument('--fig-dir', type=Path,
                     help='figure folder (default: <out without .md>/, e.g. docs/validation/)')

@@ -60,3 +60,39 @@ def test_accuracy_bad_inputs_one_line(capsys):
                  ['--set', 'slip_change_sigma=-1'], ['--set', 'slip_change_sigma']):
         one_line_exit_2(cli.main, capsys, ['accuracy', '--seeds', '0', *argv],
                         'slip-estimator accuracy: ')
+
+
+def test_every_command_help_has_a_one_line_example(capsys):
+    """``slip-estimator COMMAND --help`` ends with ``example: slip-estimator COMMAND ...`` for
+    every command (the example's options are the command's own)."""
+    import pytest
+
+    for name in cli.COMMANDS:
+        with pytest.raises(SystemExit) as exit_:
+            cli.main([name, '--help'])
+        assert exit_.value.code == 0
+        out = capsys.readouterr().out
+        examples = [ln.strip() for ln in out.splitlines() if ln.strip().startswith('example:')]
+        assert len(examples) == 1, (name, out)
+        example = examples[0].removeprefix('example: ').split()
+        assert example[:2] == ['slip-estimator', name]
+        options = {a for a in example if a.startswith('--')}
+        assert all(o in out.split('example:')[0] for o in options), (name, options)
+
+
+def test_evaluate_without_report_dir_writes_next_to_the_estimate(tmp_path, capsys):
+    from slip_estimator.replay import replay_main
+    from slip_estimator.report import evaluate_main
+    from slip_estimator.sim.bag import simulate_main
+
+    bag, params, est = tmp_path / 'drive', tmp_path / 'drive.yaml', tmp_path / 'estimate'
+    assert simulate_main(['--scenario', 'short', '--duration-s', '30', '-o', str(bag),
+                          '--params-out', str(params)]) == 0
+    assert replay_main([str(bag), '--params-file', str(params), '-o', str(est)]) == 0
+    capsys.readouterr()
+    assert evaluate_main(['--input', str(bag), '--estimate', str(est), '--params', str(params),
+                          '--no-plots', '--quiet']) == 0
+    out = capsys.readouterr().out
+    report = tmp_path / 'estimate_report'
+    assert (report / 'metrics.json').is_file() and (report / 'summary.txt').is_file()
+    assert f'report: {report}' in out
