@@ -319,6 +319,22 @@ def _inertial_truth(cfg: ScenarioConfig, C: np.ndarray, v_o: np.ndarray,
     return _Inertial(f_b, omega_ib_b, g_n, omega_ie_o)
 
 
+def _rocking(cfg: ScenarioConfig, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Roll and pitch (rad) of the chassis rocking (``TerrainConfig.rocking_harmonics``) on the
+    fine grid: sum over harmonics m of a_m |v| sin(m phi + phase_m) along a direction in the
+    roll-pitch plane, phi the wheel rotation angle integral(|v| / r)."""
+    terr = cfg.terrain
+    rng = np.random.default_rng([cfg.truth_seed, 1])  # not the hills' and undulation's stream
+    phi = _cumtrapz(np.abs(v) / cfg.rover.wheel_radius_m, h)
+    d_roll, d_pitch = np.zeros_like(v), np.zeros_like(v)
+    for mult, amp in zip(terr.rocking_harmonics, terr.rocking_rad_per_mps):
+        phase, direction = rng.uniform(0.0, 2.0 * math.pi, 2)
+        wave = amp * np.abs(v) * np.sin(mult * phi + phase)
+        d_roll += math.cos(direction) * wave
+        d_pitch += math.sin(direction) * wave
+    return d_roll, d_pitch
+
+
 @dataclass(frozen=True)
 class _Truth:
     """Truth on the fine grid (module docstring, steps 1-5); odom is ENU at the start."""
@@ -356,6 +372,9 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
     roll = np.arctan(g_l / np.sqrt(1.0 + g_f * g_f))
     C = _attitude(psi, pitch, roll)  # C_base_o
     v_o = v[:, None] * C[:, :, 0]
+    if cfg.terrain.rocking_harmonics:  # the body rocks about the path it keeps following
+        d_roll, d_pitch = _rocking(cfg, v, h)
+        C = _attitude(psi, pitch + d_pitch, roll + d_roll)
     omega_eb_b = np.zeros((len(t), 3))
     omega_eb_b[1:-1] = _vee_rel(C[:-2], C[2:]) / (2.0 * h)
     omega_eb_b[0] = omega_eb_b[1]
