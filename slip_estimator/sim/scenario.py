@@ -153,7 +153,7 @@ class TerrainConfig:
         """The default undulation with the chassis rocking measured on the real Pathfinder
         (test17run at 0.73 m/s: roll and pitch 0.3-0.7 deg 1-sigma at 1-2 Hz, gyro 0.07-0.1
         rad/s below 8 Hz; ``python -m slip_estimator.validation.sim_vs_real_page``)."""
-        return cls(rocking_harmonics=(1.0, 2.0), rocking_rad_per_mps=(0.028, 0.012))
+        return cls(rocking_harmonics=(1.0, 2.0), rocking_rad_per_mps=(0.02, 0.016))
 
 
 @dataclass(frozen=True)
