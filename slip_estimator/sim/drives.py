@@ -6,7 +6,8 @@ drive over slip patches and downhill runs) build a :class:`~.scenario.ScenarioCo
 driving segments and hills placed by time (:class:`_Builder`, also used by :mod:`.robots`).
 :func:`straight_scenario` is the real test17run's shape (rest, 52 s straight, rest) for
 comparing the simulated IMU with the real one; :func:`no_slip` turns any drive into one over
-ground that shows no slip at all (for the false-alarm rate).
+ground that shows no slip at all (for the false-alarm rate), :func:`measured_ground` into one
+with the IMU mechanisms and chassis rocking measured on the real Pathfinder.
 
 Only the standard library and numpy are imported here.
 """
@@ -230,3 +231,15 @@ def straight_scenario(seed: int = 0, noise_seed: int | None = None, drive_s: flo
     b.add(15.0, label='stop')
     return ScenarioConfig(tuple(b.segments), truth_seed=seed,
                           noise_seed=seed + 1 if noise_seed is None else noise_seed)
+
+
+def measured_ground(cfg: ScenarioConfig) -> ScenarioConfig:
+    """The same drive with the IMU error mechanisms measured on the real Pathfinder
+    (:meth:`~.imu_grades.ImuErrorConfig.pathfinder_measured`) and its chassis rocking added to
+    the drive's own terrain (:meth:`~.scenario.TerrainConfig.pathfinder_measured`)."""
+    from slip_estimator.sim.imu_grades import ImuErrorConfig
+
+    rock = TerrainConfig.pathfinder_measured()
+    return cfg.replace(imu=ImuErrorConfig.pathfinder_measured(), terrain=dataclasses.replace(
+        cfg.terrain, rocking_harmonics=rock.rocking_harmonics,
+        rocking_rad_per_mps=rock.rocking_rad_per_mps))

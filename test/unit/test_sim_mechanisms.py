@@ -285,3 +285,19 @@ def test_the_measured_grades_switch_the_mechanisms_on() -> None:
     assert c.vibration.resonance_hz == (70.0,) and c.vibration.gyro_rectified_rps_per_mps > 0
     robot = ROBOTS['skid_steer_30hz_vibrating'](0).scenario
     assert robot.rate_imu_hz == 30.0 and robot.terrain.rocking_harmonics
+
+
+def test_the_simulate_command_offers_the_no_slip_and_measured_drives() -> None:
+    from slip_estimator.sim.bag import SCENARIOS
+
+    for name in ('no_slip', 'rough_no_slip', 'measured_no_slip'):
+        r = simulate(SCENARIOS[name](0).replace(duration_s=120.0))
+        moving = r.slip_class > 0
+        assert moving.mean() > 0.4
+        np.testing.assert_allclose(r.slip_true[moving], 0.0, atol=1e-9)
+    measured = SCENARIOS['measured'](0)
+    assert measured.imu == ImuErrorConfig.pathfinder_measured()
+    assert measured.terrain.rocking_harmonics == TerrainConfig.pathfinder_measured(
+    ).rocking_harmonics
+    assert measured.terrain.hills == patch_scenario(0).terrain.hills
+    assert np.ptp(simulate(measured.replace(duration_s=120.0)).slip_true) > 0.3
