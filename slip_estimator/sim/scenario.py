@@ -132,6 +132,8 @@ class TerrainConfig:
         (real attitude motion, so the gyro and the gravity the accelerometer senses agree),
         each harmonic along a seeded direction in the roll-pitch plane with a seeded phase.
     rocking_rad_per_mps : amplitude of each harmonic per m/s of body speed, rad/(m/s).
+    rocking_pivot_depth_m : depth of the rocking axis below base_link, m: base_link (and the
+        IMU) swing about it, so the accelerometer also senses the swing's linear acceleration.
 
     The rocking defaults to off (every existing drive keeps its truth); it draws from its own
     stream of the truth seed.
@@ -143,6 +145,7 @@ class TerrainConfig:
     hill_jitter_m: float = 0.5
     rocking_harmonics: tuple[float, ...] = ()
     rocking_rad_per_mps: tuple[float, ...] = ()
+    rocking_pivot_depth_m: float = 0.0
 
     def __post_init__(self) -> None:
         if len(self.rocking_harmonics) != len(self.rocking_rad_per_mps):
@@ -152,8 +155,10 @@ class TerrainConfig:
     def pathfinder_measured(cls) -> TerrainConfig:
         """The default undulation with the chassis rocking measured on the real Pathfinder
         (test17run at 0.73 m/s: roll and pitch 0.3-0.7 deg 1-sigma at 1-2 Hz, gyro 0.07-0.1
-        rad/s below 8 Hz; ``python -m slip_estimator.validation.sim_vs_real_page``)."""
-        return cls(rocking_harmonics=(1.0, 2.0), rocking_rad_per_mps=(0.02, 0.016))
+        rad/s below 8 Hz; ``python -m slip_estimator.validation.sim_vs_real_page``), about an
+        axis 0.3 m below base_link."""
+        return cls(rocking_harmonics=(1.0, 2.0), rocking_rad_per_mps=(0.02, 0.016),
+                   rocking_pivot_depth_m=0.3)
 
 
 @dataclass(frozen=True)

@@ -374,7 +374,13 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
     v_o = v[:, None] * C[:, :, 0]
     if cfg.terrain.rocking_harmonics:  # the body rocks about the path it keeps following
         d_roll, d_pitch = _rocking(cfg, v, h)
+        C_path = C
         C = _attitude(psi, pitch + d_pitch, roll + d_roll)
+        if cfg.terrain.rocking_pivot_depth_m:
+            # about an axis below base_link: base_link swings by (C - C_path) (0, 0, depth)
+            swing = (C[:, :, 2] - C_path[:, :, 2]) * cfg.terrain.rocking_pivot_depth_m
+            p_o = p_o + swing
+            v_o = v_o + _central_diff(swing, h)
     omega_eb_b = np.zeros((len(t), 3))
     omega_eb_b[1:-1] = _vee_rel(C[:-2], C[2:]) / (2.0 * h)
     omega_eb_b[0] = omega_eb_b[1]

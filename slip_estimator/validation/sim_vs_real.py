@@ -41,6 +41,8 @@ BAND_S = 2.0
 """Width of the moving mean taken out before the driving scatter, s (leaves > ~0.5 Hz)."""
 HF_HZ = 8.0
 """Frequency above which the driving gyro scatter is vibration (the rocking is below), Hz."""
+READING_SPAN_S = 1.5
+"""Span of the oracle's reading (:data:`imu_floor.BOUND_SPANS_S`' middle one), s."""
 REST_S = 12.0
 """Longest part of the rest after the drive used for the rest statistics, s."""
 
@@ -92,9 +94,26 @@ def band_std(x: np.ndarray, dt_s: float, lo_hz: float, hi_hz: float = math.inf) 
     return np.fft.irfft(spectrum, n=len(x), axis=0).std(axis=0)
 
 
-def imu_statistics(data: Any) -> dict[str, float]:
+def reading_error_mps(params: Any, data: Any, v_true_mps: np.ndarray,
+                      span_s: float = READING_SPAN_S) -> float:
+    """RMS of the free INS's forward speed change over ``span_s`` less the true one, from
+    every 0.1 s while driving faster than 0.4 m/s (the oracle of
+    :func:`~slip_estimator.validation.imu_floor.reading_errors`, the shipped filter's state at
+    each onset): what a body-side slip reading from this IMU errs by, m/s."""
+    from slip_estimator.validation.imu_floor import grid_indices, reading_errors
+
+    t = data.imu_ns * 1e-9
+    onsets = [i for i in grid_indices(t, 0.1) if v_true_mps[i] > 0.4]
+    errors = reading_errors(params, data, v_true_mps, onsets, (span_s,))[0]
+    return float(np.sqrt(np.mean(errors ** 2))) if len(errors) else math.nan
+
+
+def imu_statistics(data: Any, params: Any = None, v_true_mps: np.ndarray | None = None
+                   ) -> dict[str, float]:
     """The statistics of the module docstring for one ``streams.SensorData`` that rests, drives
-    and rests again. Keys end in their unit; rates are means over the three axes."""
+    and rests again. Keys end in their unit; rates are means over the three axes. With
+    ``params`` and the true forward speed at the IMU samples, also the oracle's reading error
+    (:func:`reading_error_mps`)."""
     from slip_estimator.core.alignment import level
     from slip_estimator.validation.imu_floor import tilt_closure_between
 
@@ -132,6 +151,8 @@ def imu_statistics(data: Any) -> dict[str, float]:
     closure = tilt_closure_between(data, t_start, t_end)
     out['pitch_wander_deg'] = closure.get('pitch_diff_deg', math.nan)
     out['roll_wander_deg'] = closure.get('roll_diff_deg', math.nan)
+    out['reading_error_mps'] = math.nan if v_true_mps is None \
+        else reading_error_mps(params, data, v_true_mps)
     return out
 
 
@@ -152,9 +173,12 @@ class SourceStats:
         out = {}
         for k in keys:
             v = np.array([r[k] for r in self.per_run])
-            wander = k.endswith('_wander_deg')
-            out[k] = float(np.sqrt(np.nanmean(v * v)) if wander and len(v) > 1
-                           else np.nanmean(v))
+            if len(v) == 1 or np.isnan(v).all():
+                out[k] = float(v[0])
+            elif k.endswith('_wander_deg'):
+                out[k] = float(np.sqrt(np.nanmean(v * v)))
+            else:
+                out[k] = float(np.nanmean(v))
         return out
 
 
@@ -167,14 +191,19 @@ class SimVsReal:
     logs: tuple[str, ...]
 
 
-def real_stats(log_path: str | Path) -> SourceStats:
-    """:func:`imu_statistics` of a real Pathfinder log as the node sees it."""
+def real_stats(log_path: str | Path, rtk: bool = False) -> SourceStats:
+    """:func:`imu_statistics` of a real Pathfinder log as the node sees it; with ``rtk`` (a
+    log whose GNSS gives velocity truth) the reading error against its 1-s GNSS speed."""
+    from slip_estimator.effects import gnss_speed
     from slip_estimator.pathfinder import pathfinder_params, read_pathfinder_mat
     from slip_estimator.streams import from_pathfinder
 
     log = read_pathfinder_mat(log_path)
-    data = from_pathfinder(log, pathfinder_params(log, heading_deg=0.0))
-    return SourceStats(f'real {Path(log_path).stem}', True, (imu_statistics(data),))
+    params = pathfinder_params(log)
+    data = from_pathfinder(log, params)
+    v_true = gnss_speed(log, data.imu_ns * 1e-9) if rtk else None
+    return SourceStats(f'real {Path(log_path).stem}', True,
+                       (imu_statistics(data, params, v_true),))
 
 
 def sim_stats(label: str, scenario: Callable[[int], Any], seeds: Sequence[int]) -> SourceStats:
@@ -186,7 +215,8 @@ def sim_stats(label: str, scenario: Callable[[int], Any], seeds: Sequence[int]) 
     runs = []
     for seed in seeds:
         r = simulate(scenario(seed))
-        runs.append(imu_statistics(from_simulation(r, sim_params(r))))
+        params = sim_params(r)
+        runs.append(imu_statistics(from_simulation(r, params), params, r.speed_mps))
     return SourceStats(label, False, tuple(runs))
 
 
@@ -222,8 +252,12 @@ def sim_grades() -> dict[str, Callable[[int], Any]]:
     }
 
 
+RTK_LOGS = ('test17run',)
+"""Real logs whose GNSS is good enough for velocity truth (s5t1's is single-point)."""
+
+
 def compare(log_paths: Sequence[str | Path], seeds: Sequence[int] = (0, 1, 2, 3)) -> SimVsReal:
     """The real logs' statistics and every simulated grade's over ``seeds``."""
-    sources = [real_stats(p) for p in log_paths]
+    sources = [real_stats(p, rtk=Path(p).stem in RTK_LOGS) for p in log_paths]
     sources += [sim_stats(label, make, seeds) for label, make in sim_grades().items()]
     return SimVsReal(tuple(sources), tuple(seeds), tuple(str(Path(p).name) for p in log_paths))

@@ -164,9 +164,9 @@ def test_g_sensitivity_is_a_linear_map_of_the_sensed_acceleration() -> None:
     """gyro error = G (f_true + f_vibration): exact over a drive with vibration; the rest error
     is G times gravity, of the size sigma g."""
     sens = 1e-3
-    imu = dataclasses.replace(_ideal_with(gyro_g_sensitivity_rps_per_mps2=sens),
-                              vibration=dataclasses.replace(VibrationConfig(), gyro_harmonic_rps_per_mps=(0.0, 0.0, 0.0),
-                                                            gyro_broadband_rps_per_mps=0.0))
+    vib = dataclasses.replace(VibrationConfig(), gyro_harmonic_rps_per_mps=(0.0, 0.0, 0.0),
+                              gyro_broadband_rps_per_mps=0.0)  # accelerometer vibration only
+    imu = dataclasses.replace(_ideal_with(gyro_g_sensitivity_rps_per_mps2=sens), vibration=vib)
     segs = (Segment(20.0, 0.6, 0.2), Segment(20.0, 0.3, -0.3))
     r = simulate(_drive(imu, segs))
     f_sensed = r.f_ib_imu  # ideal accelerometer: true + vibration
@@ -237,7 +237,7 @@ def test_the_rectified_gyro_error_makes_the_tilt_wander_across_a_drive() -> None
     assert 0.4 * expected < wander[1] < 2.0 * expected
 
 
-# --- rocking: real attitude motion ------------------------------------------------------------------
+# --- rocking: real attitude motion ----------------------------------------------------------------
 
 def test_rocking_is_real_attitude_motion_the_accelerometer_sees() -> None:
     """One rocking harmonic of amplitude a per m/s at speed v on flat ground: the tilt about the
@@ -301,3 +301,24 @@ def test_the_simulate_command_offers_the_no_slip_and_measured_drives() -> None:
     ).rocking_harmonics
     assert measured.terrain.hills == patch_scenario(0).terrain.hills
     assert np.ptp(simulate(measured.replace(duration_s=120.0)).slip_true) > 0.3
+
+
+def test_rocking_about_a_pivot_swings_the_imu_with_its_closed_form_acceleration() -> None:
+    """Rocking of one harmonic about an axis ``d`` below base_link: the accelerometer senses
+    the swing, RMS d a v (m w_wheel)^2 / sqrt(2) more than rocking about base_link, and the
+    truth velocity is still the derivative of the truth position."""
+    a, m, d = 0.02, 2.0, 0.3
+    rock = dataclasses.replace(FLAT, rocking_harmonics=(m,), rocking_rad_per_mps=(a,))
+    about_base = simulate(_drive(ImuErrorConfig.ideal(), terrain=rock))
+    about_pivot = simulate(_drive(ImuErrorConfig.ideal(), terrain=dataclasses.replace(
+        rock, rocking_pivot_depth_m=d)))
+    steady = about_pivot.imu_t_s > 2.0
+    v = float(np.mean(about_pivot.speed_mps[steady]))
+    w = m * v / about_pivot.config.rover.wheel_radius_m
+    df = (about_pivot.f_ib_imu - about_base.f_ib_imu)[steady]
+    assert np.sqrt(np.mean(np.sum(df**2, axis=1))) == pytest.approx(
+        d * a * v * w * w / math.sqrt(2.0), rel=0.05)
+    dt = 1.0 / about_pivot.config.rate_imu_hz
+    v_fd = (about_pivot.p_ob_o[2:] - about_pivot.p_ob_o[:-2]) / (2 * dt)
+    np.testing.assert_allclose(v_fd, about_pivot.v_ob_o[1:-1], atol=2e-3)
+    assert np.max(np.abs(about_pivot.p_ob_o - about_base.p_ob_o)) > 0.5 * d * a * v
