@@ -84,7 +84,8 @@ def gauss_markov(rng: np.random.Generator, n: int, dt_s: float, tau_s: float,
                  sigma: float, axes: int = 3) -> np.ndarray:
     """``n`` samples (spacing ``dt_s``) of a stationary first-order Gauss-Markov process per
     axis, x_k+1 = phi x_k + sigma sqrt(1 - phi^2) w_k with phi = exp(-dt/tau) (the exact
-    discretisation, Groves 2013 eq. 14.86), started from its stationary N(0, sigma^2)."""
+    discretisation of dx/dt = -x/tau + white noise), started from its stationary
+    N(0, sigma^2)."""
     phi = math.exp(-dt_s / tau_s)
     w = rng.normal(0.0, 1.0, (n, axes)) * sigma * math.sqrt(1.0 - phi * phi)
     w[0] = rng.normal(0.0, 1.0, axes) * sigma

@@ -10,7 +10,10 @@ Truth (all on a flat local tangent plane, ENU axes at the start = ROS ``odom``):
    fixed-point iteration (the gradient depends on the position) to < 1e-9 m.
 3. base_link attitude ``C_base_o = Rz(psi) Ry(pitch) Rx(roll)`` with pitch = -atan(g_f) and
    roll = atan(g_l / sqrt(1 + g_f^2)) (g_l: gradient to the left): x and y of base_link lie
-   in the terrain tangent plane, and the base_link velocity is (v, 0, 0) in FLU.
+   in the terrain tangent plane, and the base_link velocity is (v, 0, 0) in FLU. Optional
+   chassis rocking (``TerrainConfig.rocking_harmonics``, off by default) adds roll and pitch
+   about that attitude, and with ``rocking_pivot_depth_m`` the swing of base_link about an
+   axis below it to the position and velocity.
 4. IMU (REP-145, instantaneous values at the sample time): with central differences on the
    fine grid, ``omega_eb_b`` from the DCM, ``a_eb_o`` from the velocity, then
    ``omega_ib_b = omega_eb_b + C_o_b omega_ie_o`` and
