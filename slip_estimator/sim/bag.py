@@ -31,7 +31,9 @@ from slip_estimator.sim.robots import ROBOTS, RobotProfile
 from slip_estimator.sim.rover import SimResult, simulate
 from slip_estimator.sim.drives import (
     default_scenario,
+    measured_ground,
     mixed_scenario,
+    no_slip,
     patch_scenario,
     short_scenario,
 )
@@ -286,8 +288,19 @@ SCENARIOS = {
     'default': default_scenario, 'short': short_scenario, 'mixed': mixed_scenario,
     'patches': patch_scenario,
     'rough': lambda seed=0, noise_seed=None: patch_scenario(seed, rough=True,
-                                                            noise_seed=noise_seed)}
-"""The scenarios ``simulate --scenario`` offers (wheel-rate control unless mixed)."""
+                                                            noise_seed=noise_seed),
+    'no_slip': lambda seed=0, noise_seed=None: no_slip(patch_scenario(
+        seed, noise_seed=noise_seed)),
+    'rough_no_slip': lambda seed=0, noise_seed=None: no_slip(patch_scenario(
+        seed, rough=True, noise_seed=noise_seed)),
+    'measured': lambda seed=0, noise_seed=None: measured_ground(patch_scenario(
+        seed, noise_seed=noise_seed)),
+    'measured_no_slip': lambda seed=0, noise_seed=None: no_slip(measured_ground(
+        patch_scenario(seed, noise_seed=noise_seed)))}
+"""The scenarios ``simulate --scenario`` offers (wheel-rate control unless mixed). The
+``*no_slip`` ones are the patches drive over ground that shows no slip at all (the
+false-alarm rate); ``measured*`` have the IMU mechanisms and chassis rocking measured on the
+real Pathfinder (``docs/sim-vs-real.md``)."""
 
 
 def simulate_main(argv: list[str] | None = None) -> int:
@@ -302,7 +315,10 @@ def simulate_main(argv: list[str] | None = None) -> int:
                     help='sensor noise seed (default: seed + 1)')
     ap.add_argument('--scenario', choices=tuple(SCENARIOS), default='default',
                     help='default, short, mixed (body- and wheel-side slip), patches (600 s '
-                         'random drive) or rough (the same on rough ground)')
+                         'random drive), rough (the same on rough ground), no_slip / '
+                         'rough_no_slip (patches / rough over ground without slip), measured / '
+                         'measured_no_slip (patches with the IMU and rocking measured on the '
+                         'real Pathfinder)')
     ap.add_argument('--robot', choices=tuple(ROBOTS), default=None,
                     help='simulate another robot instead (issue 10 profiles: rates, IMU grade, '
                          'mounting, wheel input as that robot publishes them); overrides '

@@ -4,6 +4,10 @@
 :func:`mixed_scenario` (wheel- and body-control slip) and :func:`patch_scenario` (a random
 drive over slip patches and downhill runs) build a :class:`~.scenario.ScenarioConfig` from
 driving segments and hills placed by time (:class:`_Builder`, also used by :mod:`.robots`).
+:func:`straight_scenario` is the real test17run's shape (rest, 52 s straight, rest) for
+comparing the simulated IMU with the real one; :func:`no_slip` turns any drive into one over
+ground that shows no slip at all (for the false-alarm rate), :func:`measured_ground` into one
+with the IMU mechanisms and chassis rocking measured on the real Pathfinder.
 
 Only the standard library and numpy are imported here.
 """
@@ -204,3 +208,38 @@ def patch_scenario(seed: int = 0, duration_s: float = 600.0, rough: bool = False
                                         undulation_wavelength_m=10.0),
             imu=dataclasses.replace(cfg.imu, vibration=cfg.imu.vibration.scaled(3.0)))
     return cfg
+
+
+def no_slip(cfg: ScenarioConfig) -> ScenarioConfig:
+    """The same drive over ground that shows no slip at all: every segment's slip, wheel spin
+    and differential yaw set to zero, so the mean rim speed equals the body speed and the
+    slip truth is 0 wherever the rover moves (hills, turns and vibration kept). For the
+    false-alarm rate of a slip model."""
+    return cfg.replace(segments=tuple(
+        dataclasses.replace(seg, slip=0.0, spin_mps=0.0, differential_yaw_rps=0.0)
+        for seg in cfg.segments))
+
+
+def straight_scenario(seed: int = 0, noise_seed: int | None = None, drive_s: float = 52.0,
+                      speed_mps: float = 0.73) -> ScenarioConfig:
+    """The real test17run's shape: 10 s at rest, a straight drive of ``drive_s`` at
+    ``speed_mps`` over gently undulating ground with a low slip, 15 s at rest. For the same
+    statistics on the simulated and the real IMU (:mod:`slip_estimator.validation.sim_vs_real`)."""
+    b = _Builder(np.random.default_rng(seed))
+    b.add(10.0, label='stationary')
+    b.add(drive_s, speed_mps, label='straight drive')
+    b.add(15.0, label='stop')
+    return ScenarioConfig(tuple(b.segments), truth_seed=seed,
+                          noise_seed=seed + 1 if noise_seed is None else noise_seed)
+
+
+def measured_ground(cfg: ScenarioConfig) -> ScenarioConfig:
+    """The same drive with the IMU error mechanisms measured on the real Pathfinder
+    (:meth:`~.imu_grades.ImuErrorConfig.pathfinder_measured`) and its chassis rocking added to
+    the drive's own terrain (:meth:`~.scenario.TerrainConfig.pathfinder_measured`)."""
+    from slip_estimator.sim.imu_grades import ImuErrorConfig
+
+    rock = TerrainConfig.pathfinder_measured()
+    return cfg.replace(imu=ImuErrorConfig.pathfinder_measured(), terrain=dataclasses.replace(
+        cfg.terrain, rocking_harmonics=rock.rocking_harmonics,
+        rocking_rad_per_mps=rock.rocking_rad_per_mps))

@@ -13,13 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from slip_estimator.sim.drives import _Builder
+from slip_estimator.sim.drives import _Builder, no_slip
 from slip_estimator.sim.scenario import (
     GnssConfig,
     ImuErrorConfig,
     RoverConfig,
     ScenarioConfig,
     Segment,
+    TerrainConfig,
 )
 
 
@@ -153,6 +154,31 @@ def rate_sweep_scenario(rate_imu_hz: float, rate_wheel_hz: float,
                           imu=consumer_imu(rate_imu_hz, 0.05, 0.02))
 
 
+def vibrating_robot(seed: int = 0) -> RobotProfile:
+    """The skid-steer robot of :func:`skid_steer_robot` (same drive, geometry and 30-Hz
+    rates) with :meth:`ImuErrorConfig.consumer_mems_vibrating`: misalignment, bias
+    instability, g-sensitivity, the Pathfinder's measured driving vibration and tilt wander,
+    and a 70-Hz resonance folded to 10 Hz by the 30-Hz sampling, on ground that rocks the
+    chassis like the Pathfinder's (:meth:`TerrainConfig.pathfinder_measured`); the rest noise
+    is the same 0.05 m/s^2 and 0.02 rad/s."""
+    base = skid_steer_robot(seed)
+    imu = dataclasses.replace(ImuErrorConfig.consumer_mems_vibrating(),
+                              accel_noise_density_mps2_rthz=0.05 / math.sqrt(30.0),
+                              gyro_noise_density_rps_rthz=0.02 / math.sqrt(30.0))
+    return dataclasses.replace(base, name='skid_steer_30hz_vibrating',
+                               scenario=base.scenario.replace(
+                                   imu=imu, terrain=TerrainConfig.pathfinder_measured()))
+
+
+def no_slip_robot(seed: int = 0) -> RobotProfile:
+    """:func:`vibrating_robot` over ground that shows no slip at all
+    (:func:`~slip_estimator.sim.drives.no_slip`): the false-alarm rate of a consumer IMU."""
+    base = vibrating_robot(seed)
+    return dataclasses.replace(base, name='skid_steer_30hz_no_slip',
+                               scenario=no_slip(base.scenario))
+
+
 ROBOTS = {'skid_steer_30hz': skid_steer_robot, 'fifty_hz': fifty_hz_robot,
-          'diff_drive_gravity_free': diff_drive_gravity_free_robot}
+          'diff_drive_gravity_free': diff_drive_gravity_free_robot,
+          'skid_steer_30hz_vibrating': vibrating_robot, 'skid_steer_30hz_no_slip': no_slip_robot}
 """The robot profiles by name (each a function of the truth seed)."""

@@ -19,6 +19,7 @@ from slip_estimator.sim.sensors import (
     _add_vibration,
     _gnss_llh,
     _imu_errors,
+    _real_imu_mechanisms,
     _wheel_encoders,
     _wheel_odometry,
     _wheel_slip_truth,
@@ -116,8 +117,10 @@ def simulate(config: ScenarioConfig) -> SimResult:
     """Run the scenario: exact truth, then IMU, wheel encoders and GNSS with seeded errors."""
     cfg = config
     tr = _truth(cfg)
-    rng_bias, rng_rw, rng_white, rng_vib, rng_enc, rng_gnss, rng_sf, _ = [
-        np.random.default_rng(s) for s in np.random.SeedSequence(cfg.noise_seed).spawn(8)]
+    seeds = np.random.SeedSequence(cfg.noise_seed).spawn(8)
+    rng_bias, rng_rw, rng_white, rng_vib, rng_enc, rng_gnss, rng_sf = [
+        np.random.default_rng(s) for s in seeds[:7]]
+    rngs_real = [np.random.default_rng(s) for s in seeds[7].spawn(4)]
     # sample indices (fine index 1 is t = 0)
     grid = tr.grid
     i_imu = 1 + np.arange(0, grid.n, cfg.oversample)
@@ -129,7 +132,10 @@ def simulate(config: ScenarioConfig) -> SimResult:
     w_true = tr.inertial.omega_ib_b[i_imu] @ C_imu_base
     f_meas, w_meas, ba, bg = _imu_errors(cfg, f_true, w_true, rng_bias, rng_rw, rng_white,
                                          rng_sf)
+    f_before_vib = f_meas.copy()
     f_meas, w_meas = _add_vibration(cfg, tr, i_imu, f_meas, w_meas, rng_vib)
+    _real_imu_mechanisms(cfg, tr, i_imu, f_true, f_meas - f_before_vib, f_meas, w_meas, ba, bg,
+                         rngs_real)
     counts, angle, wheel_rate = _wheel_encoders(cfg, tr.rim_mps, i_wheel, grid.h_s, rng_enc)
     s_true, cls, s_left, s_right = _wheel_slip_truth(tr, i_wheel)
     wo_xy, wo_yaw, wo_speed, wo_rate = _wheel_odometry(cfg, wheel_rate, tr.yaw0_rad)

@@ -23,6 +23,12 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
+from slip_estimator.sim.imu_grades import ImuErrorConfig, VibrationConfig
+
+__all__ = ['WHEEL_JOINT_NAMES', 'WHEEL_IS_LEFT', 'Segment', 'HillSpec', 'TerrainConfig',
+           'RoverConfig', 'VibrationConfig', 'ImuErrorConfig', 'SiteConfig', 'GnssConfig',
+           'ScenarioConfig']
+
 WHEEL_JOINT_NAMES = ('front_left_wheel_joint', 'front_right_wheel_joint',
                      'rear_left_wheel_joint', 'rear_right_wheel_joint')
 """Joint names of the four wheels, in the column order of all per-wheel arrays."""
@@ -121,12 +127,38 @@ class TerrainConfig:
     undulation_amplitude_m : amplitude of each of two crossing sinusoids, m.
     undulation_wavelength_m : their wavelength, m.
     hill_jitter_m : 1-sigma random shift of each hill centre along/across the path (truth seed), m.
+    rocking_harmonics : chassis rocking on the ground's small bumps, as multiples of the wheel
+        rotation rate: the body's roll and pitch oscillate about the terrain tangent plane
+        (real attitude motion, so the gyro and the gravity the accelerometer senses agree),
+        each harmonic along a seeded direction in the roll-pitch plane with a seeded phase.
+    rocking_rad_per_mps : amplitude of each harmonic per m/s of body speed, rad/(m/s).
+    rocking_pivot_depth_m : depth of the rocking axis below base_link, m: base_link (and the
+        IMU) swing about it, so the accelerometer also senses the swing's linear acceleration.
+
+    The rocking defaults to off (every existing drive keeps its truth); it draws from its own
+    stream of the truth seed.
     """
 
     hills: tuple[HillSpec, ...] = ()
     undulation_amplitude_m: float = 0.1
     undulation_wavelength_m: float = 30.0
     hill_jitter_m: float = 0.5
+    rocking_harmonics: tuple[float, ...] = ()
+    rocking_rad_per_mps: tuple[float, ...] = ()
+    rocking_pivot_depth_m: float = 0.0
+
+    def __post_init__(self) -> None:
+        if len(self.rocking_harmonics) != len(self.rocking_rad_per_mps):
+            raise ValueError('terrain: one rocking amplitude per rocking harmonic')
+
+    @classmethod
+    def pathfinder_measured(cls) -> TerrainConfig:
+        """The default undulation with the chassis rocking measured on the real Pathfinder
+        (test17run at 0.73 m/s: roll and pitch 0.3-0.7 deg 1-sigma at 1-2 Hz, gyro 0.07-0.1
+        rad/s below 8 Hz; ``python -m slip_estimator.validation.sim_vs_real_page``), about an
+        axis 0.3 m below base_link."""
+        return cls(rocking_harmonics=(1.0, 2.0), rocking_rad_per_mps=(0.02, 0.016),
+                   rocking_pivot_depth_m=0.3)
 
 
 @dataclass(frozen=True)
@@ -151,105 +183,6 @@ class RoverConfig:
     imu_to_base_rpy_rad: tuple[float, float, float] = (math.pi, 0.0, 0.0)
     imu_to_base_xyz_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     encoder_pulses_per_m: float = 47000.0
-
-
-@dataclass(frozen=True)
-class VibrationConfig:
-    """Speed-dependent, zero-mean vibration added to the IMU while the wheels or body move.
-
-    Amplitudes scale linearly with the vibration speed max(|body speed|, mean |rim speed|) and
-    are given at 1 m/s. Harmonics are sinusoids at multiples of the wheel rotation frequency
-    (e.g. grouser passing) with seeded phases and random per-axis directions; broadband is white.
-
-    Attributes
-    ----------
-    harmonic_multipliers : harmonic frequencies as multiples of the wheel rotation rate.
-    accel_harmonic_mps2_per_mps : accelerometer amplitude of each harmonic, (m/s^2)/(m/s).
-    gyro_harmonic_rps_per_mps : gyro amplitude of each harmonic, (rad/s)/(m/s).
-    accel_broadband_mps2_per_mps : accelerometer broadband 1-sigma per sample, (m/s^2)/(m/s).
-    gyro_broadband_rps_per_mps : gyro broadband 1-sigma per sample, (rad/s)/(m/s).
-    """
-
-    harmonic_multipliers: tuple[float, ...] = (1.0, 12.0, 24.0)
-    accel_harmonic_mps2_per_mps: tuple[float, ...] = (0.08, 0.12, 0.06)
-    gyro_harmonic_rps_per_mps: tuple[float, ...] = (0.003, 0.006, 0.003)
-    accel_broadband_mps2_per_mps: float = 0.15
-    gyro_broadband_rps_per_mps: float = 0.006
-
-    @classmethod
-    def off(cls) -> VibrationConfig:
-        """No vibration."""
-        return cls((), (), (), 0.0, 0.0)
-
-    def scaled(self, k: float) -> VibrationConfig:
-        """The same harmonics with every amplitude times ``k`` (rougher ground)."""
-        return VibrationConfig(self.harmonic_multipliers,
-                               tuple(k * a for a in self.accel_harmonic_mps2_per_mps),
-                               tuple(k * a for a in self.gyro_harmonic_rps_per_mps),
-                               k * self.accel_broadband_mps2_per_mps,
-                               k * self.gyro_broadband_rps_per_mps)
-
-
-@dataclass(frozen=True)
-class ImuErrorConfig:
-    """IMU error model (Groves 2013 sec. 4.4); every value is per axis and 1-sigma.
-
-    Attributes
-    ----------
-    accel_noise_density_mps2_rthz : accelerometer white noise (velocity random walk),
-        m/s^2/sqrt(Hz); the per-sample sigma is density * sqrt(rate).
-    gyro_noise_density_rps_rthz : gyro white noise (angle random walk), rad/s/sqrt(Hz).
-    accel_bias_sigma_mps2 : constant (turn-on) accelerometer bias, m/s^2.
-    gyro_bias_sigma_rps : constant gyro bias, rad/s.
-    accel_bias_psd_m2ps5 : accelerometer bias random-walk PSD, m^2/s^5.
-    gyro_bias_psd_rad2ps3 : gyro bias random-walk PSD, rad^2/s^3.
-    accel_scale_factor_sigma : accelerometer scale-factor error (unitless; 1e-3 = 1000 ppm).
-    gyro_scale_factor_sigma : gyro scale-factor error (unitless).
-    accel_misalignment_sigma_rad, gyro_misalignment_sigma_rad : cross-coupling, rad.
-    vibration : vibration model.
-    """
-
-    accel_noise_density_mps2_rthz: float = 1.0e-3
-    gyro_noise_density_rps_rthz: float = 1.0e-4
-    accel_bias_sigma_mps2: float = 0.02
-    gyro_bias_sigma_rps: float = 5.0e-4
-    accel_bias_psd_m2ps5: float = 1.0e-8
-    gyro_bias_psd_rad2ps3: float = 1.0e-12
-    accel_scale_factor_sigma: float = 0.0
-    gyro_scale_factor_sigma: float = 0.0
-    accel_misalignment_sigma_rad: float = 0.0
-    gyro_misalignment_sigma_rad: float = 0.0
-    vibration: VibrationConfig = field(default_factory=VibrationConfig)
-
-    @classmethod
-    def ideal(cls) -> ImuErrorConfig:
-        """A perfect IMU (no noise, bias, scale factor or vibration)."""
-        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, VibrationConfig.off())
-
-    @classmethod
-    def tactical(cls) -> ImuErrorConfig:
-        """The default: a tactical-grade MEMS IMU (ADIS16495-like)."""
-        return cls()
-
-    @classmethod
-    def industrial_mems(cls) -> ImuErrorConfig:
-        """An industrial MEMS IMU: noise 5x, turn-on biases 0.1 deg/s and 0.05 m/s^2, 0.1 %
-        scale factors."""
-        return dataclasses.replace(
-            cls(), accel_noise_density_mps2_rthz=5.0e-3, gyro_noise_density_rps_rthz=5.0e-4,
-            accel_bias_sigma_mps2=0.05, gyro_bias_sigma_rps=math.radians(0.1),
-            accel_bias_psd_m2ps5=1.0e-6, gyro_bias_psd_rad2ps3=1.0e-10,
-            accel_scale_factor_sigma=1.0e-3, gyro_scale_factor_sigma=1.0e-3)
-
-    @classmethod
-    def consumer_mems(cls) -> ImuErrorConfig:
-        """A consumer MEMS IMU: noise 10-30x the tactical one, turn-on biases 0.5 deg/s and
-        0.1 m/s^2, 0.5 % scale factors (the phone-grade parts on hobby and research robots)."""
-        return dataclasses.replace(
-            cls(), accel_noise_density_mps2_rthz=1.0e-2, gyro_noise_density_rps_rthz=3.0e-3,
-            accel_bias_sigma_mps2=0.1, gyro_bias_sigma_rps=math.radians(0.5),
-            accel_bias_psd_m2ps5=1.0e-5, gyro_bias_psd_rad2ps3=1.0e-9,
-            accel_scale_factor_sigma=5.0e-3, gyro_scale_factor_sigma=5.0e-3)
 
 
 @dataclass(frozen=True)

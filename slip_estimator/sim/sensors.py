@@ -1,7 +1,10 @@
 """Sensor models of the seeded rover simulator, applied to the fine-grid truth of :mod:`.truth`.
 
 Sensors (noise seed): constant biases, bias random walks, white noise, optional scale factor
-and misalignment, speed-dependent vibration; encoder counts quantised at
+and misalignment, speed-dependent vibration; optionally (:func:`_real_imu_mechanisms`, each
+off by default) Gauss-Markov bias instability, gyro g-sensitivity, a vibration-rectified gyro
+error that makes the integrated tilt wander while driving, and fixed-frequency resonances
+sampled without an anti-alias filter (folded to ``|f - k rate|``); encoder counts quantised at
 ``encoder_pulses_per_m`` with a random initial phase; GNSS from truth with white noise.
 
 The wheel slip truth at the encoder stamps and a 2-D wheel odometry from the measured encoders
@@ -46,6 +49,11 @@ def _imu_errors(cfg: ScenarioConfig, f_true: np.ndarray, w_true: np.ndarray,
     return f_meas, w_meas, ba, bg
 
 
+def _vibration_speed(tr: _Truth, i_imu: np.ndarray) -> np.ndarray:
+    """Speed the vibration scales with at the IMU samples: max(|body speed|, mean |rim|), m/s."""
+    return np.maximum(np.abs(tr.v_mps[i_imu]), np.abs(tr.rim_mps[i_imu]).mean(axis=1))
+
+
 def _add_vibration(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray, f_meas: np.ndarray,
                    w_meas: np.ndarray, rng_vib: np.random.Generator
                    ) -> tuple[np.ndarray, np.ndarray]:
@@ -53,7 +61,7 @@ def _add_vibration(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray, f_meas: n
     the wheels or the body move) to ``f_meas`` and ``w_meas`` in place and returns them."""
     vib = cfg.imu.vibration
     rim = tr.rim_mps
-    vib_speed = np.maximum(np.abs(tr.v_mps[i_imu]), np.abs(rim[i_imu]).mean(axis=1))
+    vib_speed = _vibration_speed(tr, i_imu)
     wheel_phase = _cumtrapz(np.abs(rim).mean(axis=1) / cfg.rover.wheel_radius_m,
                             tr.grid.h_s)[i_imu]
     for mult, amp_a, amp_g in zip(vib.harmonic_multipliers, vib.accel_harmonic_mps2_per_mps,
@@ -70,6 +78,61 @@ def _add_vibration(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray, f_meas: n
     w_meas += rng_vib.normal(0.0, 1.0, (n, 3)) \
         * (vib.gyro_broadband_rps_per_mps * vib_speed)[:, None]
     return f_meas, w_meas
+
+
+def gauss_markov(rng: np.random.Generator, n: int, dt_s: float, tau_s: float,
+                 sigma: float, axes: int = 3) -> np.ndarray:
+    """``n`` samples (spacing ``dt_s``) of a stationary first-order Gauss-Markov process per
+    axis, x_k+1 = phi x_k + sigma sqrt(1 - phi^2) w_k with phi = exp(-dt/tau) (the exact
+    discretisation of dx/dt = -x/tau + white noise), started from its stationary
+    N(0, sigma^2)."""
+    phi = math.exp(-dt_s / tau_s)
+    w = rng.normal(0.0, 1.0, (n, axes)) * sigma * math.sqrt(1.0 - phi * phi)
+    w[0] = rng.normal(0.0, 1.0, axes) * sigma
+    x = np.empty_like(w)
+    acc = w[0]
+    x[0] = acc
+    for k in range(1, n):  # a first-order recursion: n small vector steps
+        acc = phi * acc + w[k]
+        x[k] = acc
+    return x
+
+
+def _real_imu_mechanisms(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray,
+                         f_true: np.ndarray, f_vib: np.ndarray, f_meas: np.ndarray,
+                         w_meas: np.ndarray, ba: np.ndarray, bg: np.ndarray,
+                         rngs: list[np.random.Generator]) -> None:
+    """Adds, in place, the mechanisms a real vibrating IMU shows that are off by default:
+    Gauss-Markov bias instability (also into the true biases ``ba``, ``bg``), gyro
+    g-sensitivity on the sensed acceleration ``f_true + f_vib``, the vibration-rectified gyro
+    error (Gauss-Markov times the vibration speed) and fixed-frequency resonances sampled at the
+    IMU instants. Each draws from its own generator of ``rngs``, so switching one on leaves
+    the others' draws alone."""
+    e, vib = cfg.imu, cfg.imu.vibration
+    rng_gm, rng_gs, rng_rect, rng_res = rngs
+    n, dt = len(f_meas), 1.0 / cfg.rate_imu_hz
+    if e.accel_bias_instability_mps2 > 0.0 or e.gyro_bias_instability_rps > 0.0:
+        gm = gauss_markov(rng_gm, n, dt, e.bias_correlation_time_s, 1.0, axes=6)
+        ba += gm[:, :3] * e.accel_bias_instability_mps2
+        bg += gm[:, 3:] * e.gyro_bias_instability_rps
+        f_meas += gm[:, :3] * e.accel_bias_instability_mps2
+        w_meas += gm[:, 3:] * e.gyro_bias_instability_rps
+    if e.gyro_g_sensitivity_rps_per_mps2 > 0.0:
+        G = rng_gs.normal(0.0, 1.0, (3, 3)) * e.gyro_g_sensitivity_rps_per_mps2
+        w_meas += (f_true + f_vib) @ G.T
+    speed = _vibration_speed(tr, i_imu)
+    if vib.gyro_rectified_rps_per_mps > 0.0:
+        w_meas += gauss_markov(rng_rect, n, dt, vib.rectified_correlation_time_s,
+                               vib.gyro_rectified_rps_per_mps) * speed[:, None]
+    t = tr.grid.t_s[i_imu]
+    for f_hz, amp_a, amp_g in zip(vib.resonance_hz, vib.accel_resonance_mps2_per_mps,
+                                  vib.gyro_resonance_rps_per_mps):
+        ph_a, ph_g = rng_res.uniform(0.0, 2.0 * math.pi, 2)
+        dir_a, dir_g = rng_res.normal(0.0, 1.0, (2, 3))
+        dir_a /= np.linalg.norm(dir_a)
+        dir_g /= np.linalg.norm(dir_g)
+        f_meas += (amp_a * speed * np.sin(2.0 * math.pi * f_hz * t + ph_a))[:, None] * dir_a
+        w_meas += (amp_g * speed * np.sin(2.0 * math.pi * f_hz * t + ph_g))[:, None] * dir_g
 
 
 def _wheel_encoders(cfg: ScenarioConfig, rim: np.ndarray, i_wheel: np.ndarray, h: float,

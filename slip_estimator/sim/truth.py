@@ -10,7 +10,10 @@ Truth (all on a flat local tangent plane, ENU axes at the start = ROS ``odom``):
    fixed-point iteration (the gradient depends on the position) to < 1e-9 m.
 3. base_link attitude ``C_base_o = Rz(psi) Ry(pitch) Rx(roll)`` with pitch = -atan(g_f) and
    roll = atan(g_l / sqrt(1 + g_f^2)) (g_l: gradient to the left): x and y of base_link lie
-   in the terrain tangent plane, and the base_link velocity is (v, 0, 0) in FLU.
+   in the terrain tangent plane, and the base_link velocity is (v, 0, 0) in FLU. Optional
+   chassis rocking (``TerrainConfig.rocking_harmonics``, off by default) adds roll and pitch
+   about that attitude, and with ``rocking_pivot_depth_m`` the swing of base_link about an
+   axis below it to the position and velocity.
 4. IMU (REP-145, instantaneous values at the sample time): with central differences on the
    fine grid, ``omega_eb_b`` from the DCM, ``a_eb_o`` from the velocity, then
    ``omega_ib_b = omega_eb_b + C_o_b omega_ie_o`` and
@@ -319,6 +322,22 @@ def _inertial_truth(cfg: ScenarioConfig, C: np.ndarray, v_o: np.ndarray,
     return _Inertial(f_b, omega_ib_b, g_n, omega_ie_o)
 
 
+def _rocking(cfg: ScenarioConfig, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Roll and pitch (rad) of the chassis rocking (``TerrainConfig.rocking_harmonics``) on the
+    fine grid: sum over harmonics m of a_m |v| sin(m phi + phase_m) along a direction in the
+    roll-pitch plane, phi the wheel rotation angle integral(|v| / r)."""
+    terr = cfg.terrain
+    rng = np.random.default_rng([cfg.truth_seed, 1])  # not the hills' and undulation's stream
+    phi = _cumtrapz(np.abs(v) / cfg.rover.wheel_radius_m, h)
+    d_roll, d_pitch = np.zeros_like(v), np.zeros_like(v)
+    for mult, amp in zip(terr.rocking_harmonics, terr.rocking_rad_per_mps):
+        phase, direction = rng.uniform(0.0, 2.0 * math.pi, 2)
+        wave = amp * np.abs(v) * np.sin(mult * phi + phase)
+        d_roll += math.cos(direction) * wave
+        d_pitch += math.sin(direction) * wave
+    return d_roll, d_pitch
+
+
 @dataclass(frozen=True)
 class _Truth:
     """Truth on the fine grid (module docstring, steps 1-5); odom is ENU at the start."""
@@ -356,6 +375,15 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
     roll = np.arctan(g_l / np.sqrt(1.0 + g_f * g_f))
     C = _attitude(psi, pitch, roll)  # C_base_o
     v_o = v[:, None] * C[:, :, 0]
+    if cfg.terrain.rocking_harmonics:  # the body rocks about the path it keeps following
+        d_roll, d_pitch = _rocking(cfg, v, h)
+        C_path = C
+        C = _attitude(psi, pitch + d_pitch, roll + d_roll)
+        if cfg.terrain.rocking_pivot_depth_m:
+            # about an axis below base_link: base_link swings by (C - C_path) (0, 0, depth)
+            swing = (C[:, :, 2] - C_path[:, :, 2]) * cfg.terrain.rocking_pivot_depth_m
+            p_o = p_o + swing
+            v_o = v_o + _central_diff(swing, h)
     omega_eb_b = np.zeros((len(t), 3))
     omega_eb_b[1:-1] = _vee_rel(C[:-2], C[2:]) / (2.0 * h)
     omega_eb_b[0] = omega_eb_b[1]

@@ -51,15 +51,22 @@ def tilt_closure(log: Any, params: Params, rest_s: float = 3.0) -> dict[str, flo
     both (deg), their differences, the drive's duration (s) and the accelerometer's own
     agreement between the two halves of the rest after (deg, the floor of the comparison).
     """
-    from slip_estimator.core.alignment import level
-    from slip_estimator.core.frames import dcm_to_rpy, rpy_to_dcm
-    from slip_estimator.core.mechanization import rodrigues
     from slip_estimator.pathfinder import motion_interval
     from slip_estimator.streams import from_pathfinder
 
-    data = from_pathfinder(log, params)
+    return tilt_closure_between(from_pathfinder(log, params), *motion_interval(log), rest_s)
+
+
+def tilt_closure_between(data: Any, t_start_s: float, t_end_s: float, rest_s: float = 3.0
+                         ) -> dict[str, float]:
+    """:func:`tilt_closure` on any ``streams.SensorData`` (a real log or a simulated drive)
+    whose motion runs from ``t_start_s`` to ``t_end_s`` (s, on the data's ``imu_ns`` clock)."""
+    from slip_estimator.core.alignment import level
+    from slip_estimator.core.frames import dcm_to_rpy, rpy_to_dcm
+    from slip_estimator.core.mechanization import rodrigues
+
     t = data.imu_ns * 1e-9
-    t_start, t_end = motion_interval(log)
+    t_start, t_end = t_start_s, t_end_s
     before = (t > t_start - 0.5 - rest_s) & (t < t_start - 0.5)
     after = (t > t_end + 1.0) & (t < t_end + 1.0 + rest_s)
     if before.sum() < 10 or after.sum() < 10:
