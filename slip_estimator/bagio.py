@@ -1,8 +1,11 @@
 """Bag reading (rosbag2 MCAP/sqlite3 and ROS 1 ``.bag``) and MCAP writing with ROS 2 classes.
 
-The only module that touches bag files. Messages are (de)serialised with
-``rclpy.serialization`` so that replay, the simulator and the live node all handle the very same
-message classes; rosbags provides the container formats. A ROS 1 bag's messages are converted on
+The only module that touches bag files. Messages are deserialised with
+``rclpy.serialization`` so that the simulator, the reports and the live node all handle the very
+same message classes (the replay reads the serialized bytes, :func:`read_raw`, and decodes them
+with :mod:`slip_estimator.ros.cdr`); they are serialised with
+:func:`slip_estimator.ros.cdr_out.serialize` (the node's outputs written directly, other types
+through rclpy); rosbags provides the container formats. A ROS 1 bag's messages are converted on
 the fly to ROS 2 CDR with rosbags' Jazzy typestore (``ros1_to_cdr``: the ROS 1 header's ``seq``
 dropped; Imu, JointState, Odometry have the same fields otherwise). Timestamps are integer
 nanoseconds. A path that is not a readable bag raises :class:`BagError` with a one-line message
@@ -18,11 +21,12 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-from rclpy.serialization import deserialize_message, serialize_message
 from rosbags.rosbag1 import Reader as Reader1
 from rosbags.rosbag1 import ReaderError as Reader1Error
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.rosbag2 import ReaderError as Reader2Error
+
+from slip_estimator.ros.cdr_out import serialize
 
 ROS1_MAGIC = b'#ROSBAG V2.0'
 
@@ -140,6 +144,8 @@ def read_messages(path: str | Path, topics: set[str] | None = None) -> Iterator[
 
     Types that are not available as ROS 2 message classes on this machine are skipped.
     """
+    from rclpy.serialization import deserialize_message
+
     with open_bag(path) as reader:
         conns = [c for c in reader.connections if topics is None or c.topic in topics]
         decode = {}
@@ -196,4 +202,4 @@ class BagWriter:
             conn = self._writer.add_connection(topic, message_type_name(msg),
                                                typestore=_typestore())
             self._connections[topic] = conn
-        self._writer.write(conn, int(log_time_ns), serialize_message(msg))
+        self._writer.write(conn, int(log_time_ns), serialize(msg))
