@@ -21,8 +21,6 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-from rosbags.rosbag1 import Reader as Reader1
-from rosbags.rosbag1 import ReaderError as Reader1Error
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.rosbag2 import ReaderError as Reader2Error
 
@@ -72,16 +70,26 @@ def open_bag(path: str | Path) -> Iterator[Any]:
     """An open rosbags reader (rosbag2 or ROS 1) for ``path``; :class:`BagError` otherwise."""
     path = Path(path)
     _check_bag_path(path)
-    reader = Reader1(path) if ros1_bag(path) else Reader(path)
+    errors: tuple[type[Exception], ...] = (Reader2Error, OSError, ValueError, KeyError)
+    if ros1_bag(path):  # rosbags.rosbag1 is imported for ROS 1 bags only
+        from rosbags.rosbag1 import Reader as Reader1
+        from rosbags.rosbag1 import ReaderError as Reader1Error
+        reader, errors = Reader1(path), (Reader1Error, *errors)
+    else:
+        reader = Reader(path)
     try:
         reader.open()
-    except (Reader1Error, Reader2Error, OSError, ValueError, KeyError) as exc:
+    except errors as exc:
         raise BagError(f'{path}: cannot read the bag ({str(exc) or type(exc).__name__})'
                        ) from None
     try:
         yield reader
     finally:
         reader.close()
+
+
+def _is_ros1(reader: Any) -> bool:
+    return not isinstance(reader, Reader)
 
 
 def message_class(msgtype: str) -> type:
@@ -109,7 +117,7 @@ class BagMessage:
 
 def _to_cdr(reader: Any, msgtype: str) -> Callable[[Any], bytes]:
     """Raw bytes -> ROS 2 CDR for this reader's format."""
-    if isinstance(reader, Reader1):
+    if _is_ros1(reader):
         to_cdr = _typestore().ros1_to_cdr
         return lambda raw: bytes(to_cdr(raw, msgtype))
     return bytes
@@ -124,7 +132,7 @@ def read_raw(path: str | Path, topics: set[str] | None = None
     """
     with open_bag(path) as reader:
         conns = [c for c in reader.connections if topics is None or c.topic in topics]
-        ros1 = isinstance(reader, Reader1)
+        ros1 = _is_ros1(reader)
         if ros1:
             conns = [c for c in conns if c.msgtype in _typestore().types]
         if not conns:
@@ -152,7 +160,7 @@ def read_messages(path: str | Path, topics: set[str] | None = None) -> Iterator[
         for c in conns:
             try:
                 cls = message_class(c.msgtype)
-                if isinstance(reader, Reader1) and c.msgtype not in _typestore().types:
+                if _is_ros1(reader) and c.msgtype not in _typestore().types:
                     continue
             except (ImportError, AttributeError, ValueError):
                 continue

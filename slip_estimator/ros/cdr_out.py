@@ -53,9 +53,10 @@ class _Buffer:
         self.raw(_UINT32.pack(value))
 
     def string(self, text: str) -> None:
-        data = text.encode() + b'\0'
-        self.uint32(len(data))
-        self.raw(data)
+        data = text.encode()
+        pad = -self.pos % 4
+        self.parts.append(_ZEROS[:pad] + _UINT32.pack(len(data) + 1) + data + b'\0')
+        self.pos += pad + 5 + len(data)
 
     def header(self, header: Any) -> None:
         stamp = header._stamp
