@@ -53,6 +53,16 @@ def live_variants(args: argparse.Namespace) -> list[tuple[str, str | None]]:
     return [('this tree', None)] + ([(f'baseline {Path(base).name}', str(base))] if base else [])
 
 
+def tree_env(env: dict[str, str], tree: str | None) -> dict[str, str]:
+    """``env`` for a subprocess running the package of ``tree`` (None: this one).
+    PYTHONSAFEPATH: ``python -m`` would otherwise put the working folder, maybe a checkout of
+    another version, ahead of PYTHONPATH and the installed package."""
+    env = dict(env, PYTHONSAFEPATH='1')
+    if tree:
+        env['PYTHONPATH'] = str(Path(tree).resolve())
+    return env
+
+
 def _bench_live_once(args: argparse.Namespace, rate_imu_hz: float, tree: str | None
                      ) -> dict[str, Any]:
     """Node subprocess (from ``tree`` when given) + publisher/listener subprocess at
@@ -63,7 +73,7 @@ def _bench_live_once(args: argparse.Namespace, rate_imu_hz: float, tree: str | N
 
     domain_id = args.domain_id if args.domain_id is not None else 100 + os.getpid() % 100
     env = _ros_env(domain_id)
-    node_env = dict(env, PYTHONPATH=tree) if tree else env
+    node_env = tree_env(env, tree)
     with tempfile.TemporaryDirectory(prefix='slip_bench_live_') as tmp:
         work = Path(tmp)
         cfg = default_scenario(args.seed)
@@ -82,7 +92,8 @@ def _bench_live_once(args: argparse.Namespace, rate_imu_hz: float, tree: str | N
                  '--seed', str(args.seed), '--live-duration-s', str(args.live_duration_s),
                  '--live-imu-rates', f'{rate_imu_hz:g}',
                  '--worker-out', str(work / 'live.json')],
-                env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                env=tree_env(env, None), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                text=True)
             worker_log = []
             assert pub.stdout is not None
             for line in pub.stdout:

@@ -173,7 +173,7 @@ def replay_processes(bags: list[tuple[str, Path, Any]], args: argparse.Namespace
 
     from slip_estimator.bagio import bag_duration_s
     from slip_estimator.bench.identical import compare_bags
-    from slip_estimator.bench.live import live_variants
+    from slip_estimator.bench.live import live_variants, tree_env
     from slip_estimator.paramfile import save_params
 
     out = []
@@ -182,7 +182,7 @@ def replay_processes(bags: list[tuple[str, Path, Any]], args: argparse.Namespace
         best: dict[str, dict[str, Any]] = {}
         for k in range(max(1, args.replay_repeats)):
             for label, tree in live_variants(args):
-                env = dict(os.environ, PYTHONPATH=tree) if tree else dict(os.environ)
+                env = tree_env(dict(os.environ), tree)
                 dest = work / f'{name}_process_{len(best)}_{k}_{label.split()[0]}'
                 cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
                 t0 = time.perf_counter()
