@@ -14,10 +14,9 @@ never on a wall clock, so a replay is deterministic and equals what the node wou
 Bad input is counted, never raised: each input topic has a ``received`` counter and
 ``rejected`` counters per reason (see :mod:`slip_estimator.ros.convert` for the reasons, plus
 ``non_monotonic`` for IMU stamps that do not increase and ``core_error`` for samples the core
-raised on). No outgoing message carries NaN/Inf: ``/diagnostics`` is checked and dropped (and
-counted) if it has any, odometry too unless its record is finite (one numpy sum over its
-numbers, and frame names that do not read as numbers); the slip messages cannot have any by
-construction (:func:`~slip_estimator.ros.publish.slip_to_diagnostic_array` formats non-finite values as
+raised on). No outgoing message carries NaN/Inf: odometry and ``/diagnostics`` are checked and
+dropped (and counted) if they have any; the slip messages cannot have any by construction
+(:func:`~slip_estimator.ros.publish.slip_to_diagnostic_array` formats non-finite values as
 'unknown', :func:`~slip_estimator.ros.publish.slip_to_vector3` is built only from a known,
 finite slip), so they skip the check unless the frame name itself reads as a number.
 
@@ -35,7 +34,6 @@ from collections import Counter
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from nav_msgs.msg import Odometry
@@ -109,8 +107,6 @@ class SlipEstimatorAdapter:
         self._joint_rates = convert.JointRatesFromPositions(
             params.max_wheel_speed_mps / params.wheel_radius)
         self._frame_is_finite_text = finite.text_is_finite(params.base_frame)
-        self._frames_are_finite_text = (self._frame_is_finite_text
-                                        and finite.text_is_finite(params.odom_frame))
         self._odom_period_ns = (0 if params.odometry_rate_hz == 0.0
                                 else round(1e9 / params.odometry_rate_hz))
         self._diag_period_ns = round(params.diagnostics_period_s * 1e9)
@@ -217,18 +213,13 @@ class SlipEstimatorAdapter:
                 out = self._slip_outputs(estimates)
         except Exception:  # noqa: BLE001 -- a core failure must not take the node down
             self.rejected[TOPIC_IMU, REASON_CORE_ERROR] += 1
-        odometry: list[Output] = []
-        odometry_finite = True
-        if self._next_odom_ns is None or stamp_ns >= self._next_odom_ns:
-            odometry, odometry_finite = self._odometry_output(stamp_ns)
         checked: list[Output] = []
+        if self._next_odom_ns is None or stamp_ns >= self._next_odom_ns:
+            checked += self._odometry_output(stamp_ns)
         if self._next_diag_ns is None or stamp_ns >= self._next_diag_ns:
-            checked = self._diagnostics_output(stamp_ns)
-        # Counted after the diagnostics are built (their counters are those before this sample).
-        if out:
+            checked += self._diagnostics_output(stamp_ns)
+        if out:  # counted after the diagnostics are built, like the checked outputs
             out = self._pass_slip(out)
-        if odometry:
-            out += self._pass_odometry(odometry, odometry_finite)
         return out + self._guard(checked) if checked else out
 
     def on_joint_states(self, msg: JointState) -> list[Output]:
@@ -287,35 +278,21 @@ class SlipEstimatorAdapter:
             self.published[topic] += 1
         return out
 
-    def _pass_odometry(self, out: list[Output], record_finite: bool) -> list[Output]:
-        """Odometry built from a finite record with finite frame names is finite: counted as
-        published without the message check; anything else goes through :meth:`_guard`."""
-        if not (record_finite and self._frames_are_finite_text):
-            return self._guard(out)
-        self.published[TOPIC_ODOMETRY] += 1
-        return out
-
-    def _odometry_output(self, stamp_ns: int) -> tuple[list[Output], bool]:
-        """The odometry message when due, and whether every number of its record is finite
-        (one numpy reduction instead of the message check of every field)."""
+    def _odometry_output(self, stamp_ns: int) -> list[Output]:
         if self._next_odom_ns is not None and stamp_ns < self._next_odom_ns:
-            return [], True
+            return []
         try:
             odo = self._core.odometry()
         except Exception:  # noqa: BLE001
             self.rejected[TOPIC_IMU, REASON_CORE_ERROR] += 1
-            return [], True
+            return []
         if odo is None:
-            return [], True
+            return []
         # Next due time on a fixed grid (no drift), re-anchored after a gap in the data.
         nxt = (self._next_odom_ns or stamp_ns) + self._odom_period_ns
         self._next_odom_ns = nxt if nxt > stamp_ns else stamp_ns + self._odom_period_ns
         p = self.params
-        record_finite = bool(np.isfinite(
-            np.sum(odo.pose_covariance) + np.sum(odo.twist_covariance) + np.sum(odo.p_ob_o)
-            + np.sum(odo.q_ob_wxyz) + np.sum(odo.v_ob_b) + np.sum(odo.omega_ob_b)))
-        return ([(TOPIC_ODOMETRY, publish.odometry_to_msg(odo, p.odom_frame, p.base_frame))],
-                record_finite)
+        return [(TOPIC_ODOMETRY, publish.odometry_to_msg(odo, p.odom_frame, p.base_frame))]
 
     def _diagnostics_output(self, stamp_ns: int) -> list[Output]:
         if self._next_diag_ns is not None and stamp_ns < self._next_diag_ns:

@@ -528,39 +528,6 @@ def test_adapter_checks_slip_messages_when_the_frame_reads_as_nan():
         assert len(out) == 2 - 2 * dropped
 
 
-@pytest.mark.parametrize('field', ['p_ob_o', 'q_ob_wxyz', 'v_ob_b', 'omega_ob_b',
-                                   'pose_covariance', 'twist_covariance'])
-def test_adapter_drops_odometry_with_a_non_finite_number(field):
-    """Odometry skips the message check when its record sums finite: a NaN or Inf in any
-    field of the record, or an odometry frame that reads as a number, still drops it."""
-    from dataclasses import replace
-
-    from slip_estimator.core.params import Params
-    from slip_estimator.core.types import OdometryEstimate
-    from slip_estimator.ros.adapter import TOPIC_ODOMETRY, SlipEstimatorAdapter
-    from slip_estimator.ros.finite import message_is_finite
-
-    good = OdometryEstimate(5, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3),
-                            np.zeros(3), np.eye(6), np.eye(6))
-    for record, frame, kept in ((good, 'odom', True), (good, 'inf', False),
-                                *((replace(good, **{field: getattr(good, field) + bad}),
-                                   'odom', False) for bad in (math.nan, math.inf))):
-
-        class Core:
-            def __init__(self, params):
-                pass
-
-            def odometry(self):
-                return record
-
-        adapter = SlipEstimatorAdapter(Params(odom_frame=frame), Core)
-        out = adapter._pass_odometry(*adapter._odometry_output(10))
-        assert [t for t, _ in out] == ([TOPIC_ODOMETRY] if kept else [])
-        assert adapter.published[TOPIC_ODOMETRY] == int(kept)
-        assert adapter.dropped_non_finite[TOPIC_ODOMETRY] == int(not kept)
-        assert all(message_is_finite(m) for _, m in out)
-
-
 # --- Kalman solve ------------------------------------------------------------------------------
 def test_kalman_solve_equals_numpy_and_raises_where_it_does():
     rng = np.random.default_rng(13)
