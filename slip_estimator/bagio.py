@@ -1,8 +1,11 @@
 """Bag reading (rosbag2 MCAP/sqlite3 and ROS 1 ``.bag``) and MCAP writing with ROS 2 classes.
 
-The only module that touches bag files. Messages are (de)serialised with
-``rclpy.serialization`` so that replay, the simulator and the live node all handle the very same
-message classes; rosbags provides the container formats. A ROS 1 bag's messages are converted on
+The only module that touches bag files. Messages are deserialised with
+``rclpy.serialization`` so that the simulator, the reports and the live node all handle the very
+same message classes (the replay reads the serialized bytes, :func:`read_raw`, and decodes them
+with :mod:`slip_estimator.ros.cdr`); they are serialised with
+:func:`slip_estimator.ros.cdr_out.serialize` (the node's outputs written directly, other types
+through rclpy); rosbags provides the container formats. A ROS 1 bag's messages are converted on
 the fly to ROS 2 CDR with rosbags' Jazzy typestore (``ros1_to_cdr``: the ROS 1 header's ``seq``
 dropped; Imu, JointState, Odometry have the same fields otherwise). Timestamps are integer
 nanoseconds. A path that is not a readable bag raises :class:`BagError` with a one-line message
@@ -14,18 +17,24 @@ import importlib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 from typing import Any
 
-from rclpy.serialization import deserialize_message, serialize_message
-from rosbags.rosbag1 import Reader as Reader1
-from rosbags.rosbag1 import ReaderError as Reader1Error
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 from rosbags.rosbag2 import ReaderError as Reader2Error
-from rosbags.typesys import Stores, get_typestore
 
-_TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+from slip_estimator.ros.cdr_out import serialize
+
 ROS1_MAGIC = b'#ROSBAG V2.0'
+
+
+@cache
+def _typestore() -> Any:
+    """rosbags' Jazzy typestore (about 0.2 s to build: made when a ROS 1 bag or a writer
+    first needs it)."""
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
 
 
 class BagError(Exception):
@@ -61,16 +70,26 @@ def open_bag(path: str | Path) -> Iterator[Any]:
     """An open rosbags reader (rosbag2 or ROS 1) for ``path``; :class:`BagError` otherwise."""
     path = Path(path)
     _check_bag_path(path)
-    reader = Reader1(path) if ros1_bag(path) else Reader(path)
+    errors: tuple[type[Exception], ...] = (Reader2Error, OSError, ValueError, KeyError)
+    if ros1_bag(path):  # rosbags.rosbag1 is imported for ROS 1 bags only
+        from rosbags.rosbag1 import Reader as Reader1
+        from rosbags.rosbag1 import ReaderError as Reader1Error
+        reader, errors = Reader1(path), (Reader1Error, *errors)
+    else:
+        reader = Reader(path)
     try:
         reader.open()
-    except (Reader1Error, Reader2Error, OSError, ValueError, KeyError) as exc:
+    except errors as exc:
         raise BagError(f'{path}: cannot read the bag ({str(exc) or type(exc).__name__})'
                        ) from None
     try:
         yield reader
     finally:
         reader.close()
+
+
+def _is_ros1(reader: Any) -> bool:
+    return not isinstance(reader, Reader)
 
 
 def message_class(msgtype: str) -> type:
@@ -98,9 +117,33 @@ class BagMessage:
 
 def _to_cdr(reader: Any, msgtype: str) -> Callable[[Any], bytes]:
     """Raw bytes -> ROS 2 CDR for this reader's format."""
-    if isinstance(reader, Reader1):
-        return lambda raw: bytes(_TYPESTORE.ros1_to_cdr(raw, msgtype))
+    if _is_ros1(reader):
+        to_cdr = _typestore().ros1_to_cdr
+        return lambda raw: bytes(to_cdr(raw, msgtype))
     return bytes
+
+
+def read_raw(path: str | Path, topics: set[str] | None = None
+             ) -> Iterator[tuple[str, str, int, bytes]]:
+    """Yield (topic, type name, log time ns, ROS 2 CDR bytes) of the messages of a bag in
+    log-time order, without deserializing them (a ROS 1 bag's messages converted to CDR).
+
+    Types that a ROS 1 bag cannot convert (not in the Jazzy typestore) are skipped.
+    """
+    with open_bag(path) as reader:
+        conns = [c for c in reader.connections if topics is None or c.topic in topics]
+        ros1 = _is_ros1(reader)
+        if ros1:
+            conns = [c for c in conns if c.msgtype in _typestore().types]
+        if not conns:
+            return
+        if not ros1:
+            for conn, log_ns, raw in reader.messages(connections=conns):
+                yield conn.topic, conn.msgtype, log_ns, raw
+            return
+        to_cdr = _typestore().ros1_to_cdr
+        for conn, log_ns, raw in reader.messages(connections=conns):
+            yield conn.topic, conn.msgtype, log_ns, bytes(to_cdr(raw, conn.msgtype))
 
 
 def read_messages(path: str | Path, topics: set[str] | None = None) -> Iterator[BagMessage]:
@@ -109,13 +152,15 @@ def read_messages(path: str | Path, topics: set[str] | None = None) -> Iterator[
 
     Types that are not available as ROS 2 message classes on this machine are skipped.
     """
+    from rclpy.serialization import deserialize_message
+
     with open_bag(path) as reader:
         conns = [c for c in reader.connections if topics is None or c.topic in topics]
         decode = {}
         for c in conns:
             try:
                 cls = message_class(c.msgtype)
-                if isinstance(reader, Reader1) and c.msgtype not in _TYPESTORE.types:
+                if _is_ros1(reader) and c.msgtype not in _typestore().types:
                     continue
             except (ImportError, AttributeError, ValueError):
                 continue
@@ -163,6 +208,6 @@ class BagWriter:
         conn = self._connections.get(topic)
         if conn is None:
             conn = self._writer.add_connection(topic, message_type_name(msg),
-                                               typestore=_TYPESTORE)
+                                               typestore=_typestore())
             self._connections[topic] = conn
-        self._writer.write(conn, int(log_time_ns), serialize_message(msg))
+        self._writer.write(conn, int(log_time_ns), serialize(msg))

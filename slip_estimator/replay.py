@@ -15,9 +15,12 @@ the live node does: named in ``/diagnostics``, the estimator reset, output resum
 published message is written with log time = the header stamp of the input that produced it.
 Nothing depends on wall time, so two replays give identical message streams.
 
-The input streams through in chunks of ``CHUNK_MESSAGES``: read (read, deserialize, reorder),
-estimation (the adapter: conversion, core, output messages, NaN guard), write (serialize, write,
-close); three timers split the wall time into these phases at no per-message cost.
+The input streams through in chunks of ``CHUNK_MESSAGES``: read (read the serialized messages,
+decode the IMU's in one batch per chunk with :mod:`slip_estimator.ros.cdr`, reorder), estimation
+(the adapter: wheel decoding, core, output messages, NaN guard), write (serialize, write,
+close); three timers split the wall time into these phases at no per-message cost. No Python
+message object is built for an input: the IMU bytes become :class:`ImuSample` records in
+numpy, as :func:`slip_estimator.ros.convert.imu_from_msg` would make them from messages.
 """
 from __future__ import annotations
 
@@ -31,8 +34,9 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from itertools import islice
 from pathlib import Path
+from typing import Any
 
-from slip_estimator.bagio import BagError, BagMessage, BagWriter, bag_topics, read_messages
+from slip_estimator.bagio import BagError, BagWriter, bag_topics, read_raw
 from slip_estimator.core.params import ParameterError, Params
 from slip_estimator.paramfile import load_params
 from slip_estimator.ros.adapter import (
@@ -42,7 +46,7 @@ from slip_estimator.ros.adapter import (
     EstimatorFactory,
     SlipEstimatorAdapter,
 )
-from slip_estimator.ros.convert import header_stamp_ns
+from slip_estimator.ros import cdr
 
 PROGRESS_EVERY_S = 2.0
 """Wall-time interval of the progress line on stderr."""
@@ -67,7 +71,7 @@ class ReplaySummary:
     data_duration_s: float = 0.0
     wall_time_s: float = 0.0
     read_s: float = 0.0
-    """Bag read: read + deserialize + reorder, s."""
+    """Bag read: read + decode the IMU + reorder, s."""
     estimation_s: float = 0.0
     """Estimation: the adapter (conversion, core, output messages, NaN guard), s."""
     write_s: float = 0.0
@@ -103,8 +107,9 @@ def _rank(topic: str) -> int:
     return 0 if topic == TOPIC_IMU else 1
 
 
-Item = tuple[int, BagMessage]
-"""(header stamp ns, message) as the adapter gets it."""
+Item = tuple[int, str, Any]
+"""(header stamp ns, input topic, payload): an IMU payload is an ImuSample or the reason it was
+rejected, a wheel payload the serialized message."""
 
 
 class ReorderWindow:
@@ -120,18 +125,18 @@ class ReorderWindow:
                  jump_back_s: float = RESET_JUMP_BACK_S) -> None:
         self._window_ns = round(window_s * 1e9)
         self._jump_ns = round(jump_back_s * 1e9)
-        self._heap: list[tuple[int, int, int, BagMessage]] = []
+        self._heap: list[tuple[int, int, int, Item]] = []
         self._newest_ns: int | None = None
         self._arrivals = 0
 
-    def order(self, messages: Iterable[BagMessage]) -> Iterator[Item]:
-        """The messages in replay order."""
+    def order(self, items: Iterable[Item]) -> Iterator[Item]:
+        """The items (in arrival order) in replay order."""
         heap = self._heap
-        for m in messages:
-            stamp_ns = header_stamp_ns(m.msg)
+        for item in items:
+            stamp_ns = item[0]
             self._arrivals += 1
             if stamp_ns <= 0:
-                yield stamp_ns, m
+                yield item
                 continue
             newest = self._newest_ns
             if newest is not None and newest - stamp_ns > self._jump_ns:
@@ -139,18 +144,35 @@ class ReorderWindow:
                 newest = None
             if newest is None or stamp_ns > newest:
                 self._newest_ns = newest = stamp_ns
-            heapq.heappush(heap, (stamp_ns, _rank(m.topic), self._arrivals, m))
+            heapq.heappush(heap, (stamp_ns, _rank(item[1]), self._arrivals, item))
             limit = newest - self._window_ns
             while heap and heap[0][0] <= limit:
-                item = heapq.heappop(heap)
-                yield item[0], item[3]
+                yield heapq.heappop(heap)[3]
         yield from self._flush()
 
     def _flush(self) -> Iterator[Item]:
         while self._heap:
-            item = heapq.heappop(self._heap)
-            yield item[0], item[3]
+            yield heapq.heappop(self._heap)[3]
         self._newest_ns = None
+
+
+def decoded_inputs(adapter: SlipEstimatorAdapter, raw: Iterable[tuple[str, bytes]]
+                   ) -> Iterator[Item]:
+    """(topic, serialized message) in arrival order -> :data:`Item` in the same order: the IMU
+    decoded into samples ``CHUNK_MESSAGES`` at a time (:meth:`SlipEstimatorAdapter.imu_samples`),
+    the wheel messages' stamps read (0 for one that does not decode: the adapter rejects it)."""
+    raw = iter(raw)
+    while chunk := list(islice(raw, CHUNK_MESSAGES)):
+        imu = iter(adapter.imu_samples([r for topic, r in chunk if topic == TOPIC_IMU]))
+        for topic, r in chunk:
+            if topic == TOPIC_IMU:
+                stamp_ns, sample = next(imu)
+                yield stamp_ns, topic, sample
+            else:
+                try:
+                    yield cdr.stamp_ns(r), topic, r
+                except cdr.CdrError:
+                    yield 0, topic, r
 
 
 def parse_remap(text: str) -> tuple[str, str]:
@@ -225,10 +247,9 @@ def replay_bag(input_bag: str | Path, params: Params, output_bag: str | Path, *,
                else SlipEstimatorAdapter(params, estimator_factory))
     remap = with_params_remap(adapter, remap or {})
     rename = {src: dst for dst, src in input_sources(adapter.input_types, remap).items()}
-    messages = (BagMessage(rename[m.topic], m.msgtype, m.log_time_ns, m.msg)
-                for m in read_messages(input_bag, set(rename)))
-    ordered = ReorderWindow(reorder_window_s).order(messages)
-    # The messages have no reference cycles: the cyclic garbage collector is kept off.
+    raw = ((rename[topic], r) for topic, _, _, r in read_raw(input_bag, set(rename)))
+    ordered = ReorderWindow(reorder_window_s).order(decoded_inputs(adapter, raw))
+    # The records have no reference cycles: the cyclic garbage collector is kept off.
     gc_was_enabled = gc.isenabled()
     gc.disable()
     try:
@@ -264,7 +285,7 @@ class _Run:
 
     def stream(self, ordered: Iterator[Item], writer: BagWriter, setup_s: float) -> None:
         clock = time.perf_counter
-        on_message = self.adapter.on_message
+        on_imu, on_raw = self.adapter.on_imu_sample, self.adapter.on_raw
         self.read_s = setup_s
         next_progress = clock() + PROGRESS_EVERY_S
         while True:
@@ -275,8 +296,8 @@ class _Run:
             if not chunk:
                 return
             produced = []
-            for stamp_ns, m in chunk:
-                out = on_message(m.topic, m.msg)
+            for stamp_ns, topic, payload in chunk:
+                out = on_imu(payload) if topic == TOPIC_IMU else on_raw(topic, payload)
                 if out:
                     produced.append((stamp_ns, out))
             t_write = clock()
@@ -294,10 +315,10 @@ class _Run:
     def _count(self, chunk: list[Item]) -> None:
         """Count the chunk; the data duration adds up the stamp spans between clock jumps."""
         self.n_in += len(chunk)
-        self.inputs.update(m.topic for _, m in chunk)
+        self.inputs.update(topic for _, topic, _ in chunk)
         jump_ns = RESET_JUMP_BACK_S * 1e9
         lo, hi = self._stamp_min, self._stamp_max
-        for stamp_ns, _ in chunk:
+        for stamp_ns, _, _ in chunk:
             if stamp_ns <= 0:
                 continue
             if lo is None or hi is None:

@@ -46,6 +46,13 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument('--live-duration-s', type=float, default=60.0,
                     help='live: publishing time, s')
     ap.add_argument('--live-discovery-timeout-s', type=float, default=30.0)
+    ap.add_argument('--live-imu-rates', type=_floats, default=[250.0, 1000.0],
+                    help='live: IMU rates to publish at, Hz (comma-separated; wheels 10 Hz)')
+    ap.add_argument('--baseline', type=Path, default=None, metavar='DIR',
+                    help='a source tree of the previous version (e.g. git worktree add DIR '
+                         'REV, or git archive REV | tar -x -C DIR): its node (live) and its '
+                         'whole replay process (replay) are measured right after this '
+                         "tree's, side by side")
     ap.add_argument('--domain-id', type=int, default=None,
                     help='live: ROS_DOMAIN_ID (default: 100 + pid %% 100)')
     ap.add_argument('--memory-duration-s', type=float, default=3600.0,

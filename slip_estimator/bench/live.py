@@ -35,13 +35,45 @@ def _ros_env(domain_id: int) -> dict[str, str]:
 
 
 def bench_live(args: argparse.Namespace) -> dict[str, Any]:
-    """Node subprocess + publisher/listener subprocess; CPU of the node from /proc."""
+    """One live run per IMU rate of ``--live-imu-rates``, the node of this tree and, with
+    ``--baseline DIR``, the node of that source tree right after it (same publisher, same
+    load): ``{'runs': [figures of each run]}``."""
+    runs = []
+    for rate in args.live_imu_rates:
+        for label, tree in live_variants(args):
+            res = _bench_live_once(args, float(rate), tree)
+            res.update(label=label, imu_rate_hz=float(rate))
+            runs.append(res)
+    return {'runs': runs}
+
+
+def live_variants(args: argparse.Namespace) -> list[tuple[str, str | None]]:
+    """(label, source tree or None for this one) of the nodes to measure."""
+    base = getattr(args, 'baseline', None)
+    return [('this tree', None)] + ([(f'baseline {Path(base).name}', str(base))] if base else [])
+
+
+def tree_env(env: dict[str, str], tree: str | None) -> dict[str, str]:
+    """``env`` for a subprocess running the package of ``tree`` (None: this one).
+    PYTHONSAFEPATH: ``python -m`` would otherwise put the working folder, maybe a checkout of
+    another version, ahead of PYTHONPATH and the installed package."""
+    env = dict(env, PYTHONSAFEPATH='1')
+    if tree:
+        env['PYTHONPATH'] = str(Path(tree).resolve())
+    return env
+
+
+def _bench_live_once(args: argparse.Namespace, rate_imu_hz: float, tree: str | None
+                     ) -> dict[str, Any]:
+    """Node subprocess (from ``tree`` when given) + publisher/listener subprocess at
+    ``rate_imu_hz``; CPU of the node from /proc."""
     from slip_estimator.paramfile import save_params
     from slip_estimator.sim import default_scenario, simulate
     from slip_estimator.sim.bag import sim_params
 
     domain_id = args.domain_id if args.domain_id is not None else 100 + os.getpid() % 100
     env = _ros_env(domain_id)
+    node_env = tree_env(env, tree)
     with tempfile.TemporaryDirectory(prefix='slip_bench_live_') as tmp:
         work = Path(tmp)
         cfg = default_scenario(args.seed)
@@ -51,15 +83,17 @@ def bench_live(args: argparse.Namespace) -> dict[str, Any]:
         node = subprocess.Popen(
             [sys.executable, '-m', 'slip_estimator.ros.node', '--ros-args',
              '--params-file', str(work / 'params.yaml')],
-            env=env, stdout=node_log, stderr=subprocess.STDOUT)
+            env=node_env, stdout=node_log, stderr=subprocess.STDOUT)
         pub = None
         marks: dict[str, tuple[float, float]] = {}
         try:
             pub = subprocess.Popen(
                 [sys.executable, '-m', 'slip_estimator.bench', '--worker', 'live',
                  '--seed', str(args.seed), '--live-duration-s', str(args.live_duration_s),
+                 '--live-imu-rates', f'{rate_imu_hz:g}',
                  '--worker-out', str(work / 'live.json')],
-                env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+                env=tree_env(env, None), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                text=True)
             worker_log = []
             assert pub.stdout is not None
             for line in pub.stdout:
@@ -126,7 +160,7 @@ class _LiveDrive:
 def _live_drive(args: argparse.Namespace) -> _LiveDrive:
     from slip_estimator.sim import default_scenario, simulate
 
-    cfg = default_scenario(args.seed)
+    cfg = default_scenario(args.seed).replace(rate_imu_hz=float(args.live_imu_rates[0]))
     result = simulate(cfg.replace(duration_s=max(10.0, min(args.live_duration_s + 1.0,
                                                            cfg.total_duration_s))))
     return _LiveDrive(result.f_ib_imu.tolist(), result.omega_ib_imu.tolist(),

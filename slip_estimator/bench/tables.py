@@ -59,39 +59,56 @@ def print_replay(res: dict[str, Any]) -> None:
     print(_table(('bag', 'msgs in', 'msgs out', 'data s', 'wall s', 'x real time',
                   'read+deser s', 'ser+write s', 'bag IO %', 'estimation s', 'est. %',
                   'est. x real time'), rows))
-    print('  read = read_messages + header-stamp sort; estimation = adapter.on_message '
-          '(convert + core + output messages + NaN guard); write = serialize + write + close')
+    print('  read = read the serialized inputs + decode the IMU (ros.cdr) + header-stamp '
+          'reorder; estimation = the adapter (wheel decode + core + output messages + NaN '
+          'guard); write = serialize (ros.cdr_out) + write + close')
+    if res.get('process'):
+        print('\n  whole process (`slip-estimator replay BAG --params-file P --output O` in a '
+              'subprocess: start-up, imports, read, estimation, write), runs interleaved')
+        print(_table(('bag', 'code', 'data s', 'wall s', 'x real time', 'CPU s',
+                      'outputs vs this tree'),
+                     [(r['bag'], r['label'], r['data_s'], r['wall_s'], r['realtime_ratio'],
+                       r['cpu_s'], r.get('identical', '')) for r in res['process']]))
     if res.get('pathfinder_skipped'):
         print(f'  s5t1 skipped: {res["pathfinder_skipped"]}')
 
 
 def print_live(res: dict[str, Any]) -> None:
-    e2e = res['end_to_end']
-    print(f'\n== live node over DDS ({res["duration_s"]:g} s, IMU 250 Hz + JointState 10 Hz '
-          f'with wall-clock stamps, ROS_DOMAIN_ID {res["domain_id"]}, LOCALHOST discovery)')
-    rows = [
-        ('IMU received / sent', f'{res["imu_received"]} / {res["imu_sent"]}'),
-        ('JointState received / sent', f'{res["wheel_received"]} / {res["wheel_sent"]}'),
-        ('IMU stamp gaps (node)', res['imu_stamp_gaps']),
-        ('publisher late sends (max ms)',
-         f'{res["publisher_late"]} ({res["publisher_max_late_ms"]:.2f})'),
-        ('IMU callback p50 / p99 / max ms',
-         (f'{_fmt(res["callback_p50_ms"])} / {_fmt(res["callback_p99_ms"])} / '
-          f'{_fmt(res["callback_max_ms"])} (last {res["callback_window"]:.0f} callbacks)')),
-        ('end-to-end IMU stamp -> odometry p50 / p99 / max ms',
-         (f'{_fmt(e2e["p50_ms"])} / {_fmt(e2e["p99_ms"])} / {_fmt(e2e["max_ms"])} '
-          f'({e2e["n"]} odometry messages)')),
-        ('node CPU, % of one core', res.get('node_cpu_percent_of_one_core', float('nan'))),
-        ('node RSS / peak MiB', (f'{_fmt(res.get("node_rss_mb", float("nan")))} / '
-                                 f'{_fmt(res.get("node_peak_rss_mb", float("nan")))}')),
-    ]
-    print(_table(('figure', 'value'), rows, left=2))
-    q = res['qos']
+    runs = res['runs']
+    first = runs[0]
+    print(f'\n== live node over DDS ({first["duration_s"]:g} s per run, IMU at each rate + '
+          f'JointState 10 Hz with wall-clock stamps, ROS_DOMAIN_ID {first["domain_id"]}, '
+          'LOCALHOST discovery; runs one after another)')
+
+    def column(r: dict[str, Any]) -> list[Any]:
+        e2e = r['end_to_end']
+        return [
+            f'{r["imu_received"]} / {r["imu_sent"]}',
+            f'{r["wheel_received"]} / {r["wheel_sent"]}',
+            r['imu_stamp_gaps'],
+            f'{r["publisher_late"]} ({r["publisher_max_late_ms"]:.2f})',
+            (f'{_fmt(r["callback_p50_ms"])} / {_fmt(r["callback_p99_ms"])} / '
+             f'{_fmt(r["callback_max_ms"])}'),
+            f'{_fmt(e2e["p50_ms"])} / {_fmt(e2e["p99_ms"])} / {_fmt(e2e["max_ms"])}',
+            r.get('node_cpu_percent_of_one_core', float('nan')),
+            (f'{_fmt(r.get("node_rss_mb", float("nan")))} / '
+             f'{_fmt(r.get("node_peak_rss_mb", float("nan")))}'),
+        ]
+
+    names = ('IMU received / sent', 'JointState received / sent', 'IMU stamp gaps (node)',
+             'publisher late sends (max ms)', 'IMU callback p50 / p99 / max ms',
+             'IMU stamp -> odometry p50 / p99 / max ms', 'node CPU, % of one core',
+             'node RSS / peak MiB')
+    cols = [column(r) for r in runs]
+    rows = [(name, *(c[i] for c in cols)) for i, name in enumerate(names)]
+    print(_table(('figure', *(f'{r["label"]}, {r["imu_rate_hz"]:g} Hz' for r in runs)), rows))
+    q = first['qos']
     print(f'  QoS: publisher IMU {q["imu_publisher"]}, JointState {q["wheel_publisher"]}; node '
           f'inputs {q["node_inputs"]}; listener {q["listener"]}')
-    print(f'  odometry at the node default odometry_rate_hz = {res["odometry_rate_hz"]:g} '
+    print(f'  odometry at the node default odometry_rate_hz = {first["odometry_rate_hz"]:g} '
           '(latency measured on those IMU stamps); counters from the node\'s final '
-          '/diagnostics (watchdog STALE report)')
+          '/diagnostics (watchdog STALE report); stamp gaps are publisher send jitter '
+          '(> 1.5 periods between stamps), drops are received < sent')
 
 
 def print_memory(res: dict[str, Any]) -> None:

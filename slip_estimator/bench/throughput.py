@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import os
 import tempfile
 import time
 from collections.abc import Sequence
@@ -143,6 +144,7 @@ def bench_replay(args: argparse.Namespace) -> dict[str, Any]:
         del result
         rows.append(_replay_one('sim', work / 'sim', params, work, args.replay_repeats))
         rows[-1]['bag_write_s'] = sim_write_s
+        bags = [('sim', work / 'sim', params)]
         pathfinder = Path(args.pathfinder).resolve() if args.pathfinder else None
         if pathfinder is not None and pathfinder.exists():
             from slip_estimator.pathfinder import import_pathfinder
@@ -152,9 +154,64 @@ def bench_replay(args: argparse.Namespace) -> dict[str, Any]:
             import_s = time.perf_counter() - t0
             rows.append(_replay_one('s5t1', work / 's5t1', pf_params, work, args.replay_repeats))
             rows[-1]['bag_write_s'] = import_s
+            bags.append(('s5t1', work / 's5t1', pf_params))
         skipped = None if (pathfinder is not None and pathfinder.exists()) else \
             f'{args.pathfinder} not found'
-    return {'rows': rows, 'pathfinder_skipped': skipped}
+        process = replay_processes(bags, args, work)
+    return {'rows': rows, 'pathfinder_skipped': skipped, 'process': process}
+
+
+def replay_processes(bags: list[tuple[str, Path, Any]], args: argparse.Namespace, work: Path
+                     ) -> list[dict[str, Any]]:
+    """Whole-process ``slip-estimator replay`` of each bag by this tree and (``--baseline``)
+    the baseline tree, interleaved, best of ``--replay-repeats`` by wall time; the baseline's
+    slip and odometry outputs compared with this tree's (:mod:`slip_estimator.bench.identical`).
+    """
+    import resource
+    import subprocess
+    import sys
+
+    from slip_estimator.bagio import bag_duration_s
+    from slip_estimator.bench.identical import compare_bags
+    from slip_estimator.bench.live import live_variants, tree_env
+    from slip_estimator.paramfile import save_params
+
+    out = []
+    for name, bag, params in bags:
+        save_params(params, work / f'{name}.yaml')
+        best: dict[str, dict[str, Any]] = {}
+        for k in range(max(1, args.replay_repeats)):
+            for label, tree in live_variants(args):
+                env = tree_env(dict(os.environ), tree)
+                dest = work / f'{name}_process_{len(best)}_{k}_{label.split()[0]}'
+                cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+                t0 = time.perf_counter()
+                proc = subprocess.run(
+                    [sys.executable, '-m', 'slip_estimator.cli', 'replay', str(bag),
+                     '--params-file', str(work / f'{name}.yaml'), '--output', str(dest)],
+                    env=env, capture_output=True, text=True, check=False)
+                wall = time.perf_counter() - t0
+                cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+                if proc.returncode not in (0, 1):
+                    raise RuntimeError(f'replay of {name} by {label} failed: '
+                                       f'{proc.stderr.strip()[-500:]}')
+                cpu = cpu1.ru_utime + cpu1.ru_stime - cpu0.ru_utime - cpu0.ru_stime
+                if label not in best or wall < best[label]['wall_s']:
+                    best[label] = {'bag': name, 'label': label, 'wall_s': wall, 'cpu_s': cpu,
+                                   'output': dest}
+        mine = best['this tree']
+        data_s = bag_duration_s(bag)
+        for row in best.values():
+            row['data_s'] = data_s
+            row['realtime_ratio'] = data_s / row['wall_s']
+            if row is not mine:
+                counts, diffs = compare_bags(mine['output'], row['output'])
+                row['identical'] = (f'identical ({sum(counts.values())} messages)' if not diffs
+                                    else f'DIFFERENT: {diffs[0]}')
+            row['output'] = str(row['output'])
+            out.append(row)
+    return out
+
 
 
 def bench_scaling(args: argparse.Namespace) -> dict[str, Any]:

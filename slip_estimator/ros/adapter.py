@@ -42,7 +42,7 @@ from sensor_msgs.msg import Imu, JointState
 from slip_estimator.core import frames
 from slip_estimator.core.estimator import SlipEstimator
 from slip_estimator.core.params import Params
-from slip_estimator.core.types import Health, SlipEstimate, WheelSample
+from slip_estimator.core.types import Health, ImuSample, SlipEstimate, WheelSample
 from slip_estimator.ros import convert, finite, publish
 
 TOPIC_IMU = '/imu/data'
@@ -170,10 +170,35 @@ class SlipEstimatorAdapter:
             return self.on_wheel_odometry(msg)
         return []
 
+    def on_raw(self, topic: str, raw: bytes | memoryview) -> list[Output]:
+        """Dispatch a serialized input message (CDR) by topic: the live node's raw
+        subscriptions and the replay's wheel topics; unknown topics give nothing."""
+        p = self.params
+        if topic == TOPIC_IMU:
+            return self.on_imu_sample(convert.imu_from_cdr(raw, self._C_imu_b))
+        if topic == TOPIC_JOINT_STATES:
+            return self._on_wheel(topic, convert.wheel_from_cdr_joint_state(
+                raw, p.wheel_joint_names, p.wheel_radius, max_speed_mps=p.max_wheel_speed_mps,
+                from_positions=self._joint_rates))
+        if topic == TOPIC_WHEEL_ODOMETRY:
+            return self._on_wheel(topic, convert.wheel_from_cdr_odometry(
+                raw, p.track_width, max_speed_mps=p.max_wheel_speed_mps))
+        return []
+
+    def imu_samples(self, raws: list[bytes]) -> list[tuple[int, ImuSample | str]]:
+        """(stamp ns, sample or rejection reason) of serialized IMU messages, decoded in one
+        batch with the mounting in force now (the replay's IMU path; a later parameter change
+        does not reach samples decoded before it)."""
+        return convert.imu_samples_from_cdr(raws, self._C_imu_b)
+
     def on_imu(self, msg: Imu) -> list[Output]:
-        """Process one ``sensor_msgs/Imu``: INS step, due slip, odometry and diagnostics."""
+        """Process one ``sensor_msgs/Imu`` message object (:meth:`on_imu_sample`)."""
+        return self.on_imu_sample(convert.imu_from_msg(msg, self._C_imu_b))
+
+    def on_imu_sample(self, sample: ImuSample | str) -> list[Output]:
+        """Process one IMU sample (or the reason its message was rejected): INS step, due
+        slip, odometry and diagnostics."""
         self.received[TOPIC_IMU] += 1
-        sample = convert.imu_from_msg(msg, self._C_imu_b)
         if isinstance(sample, str):
             self.rejected[TOPIC_IMU, sample] += 1
             return []

@@ -16,6 +16,16 @@ between the publisher's count and ``/imu/data received``.
 Outputs are RELIABLE, VOLATILE, KEEP_LAST: depth 10 for odometry and diagnostics, 100 for the
 slip topics (one message per wheel sample, consumers must not miss class changes).
 
+Receiving
+---------
+The inputs are subscribed ``raw=True``: rclpy hands over the serialized bytes, which
+:mod:`slip_estimator.ros.cdr` decodes straight into the core's records (no Python message
+object per sample; malformed or big-endian bytes are counted as rejections). The node spins
+Jazzy's ``rclpy.experimental.EventsExecutor`` in a ``spin_once`` loop (its ``spin()`` would
+hold the GIL from other Python threads); without it, the ``SingleThreadedExecutor``. Measured
+at 250 Hz IMU + 10 Hz wheels (``slip-estimator bench --only live``, docs/performance.md): the
+executor and the per-message objects were most of the node's CPU.
+
 Parameters
 ----------
 Declared from :class:`slip_estimator.core.params.Params` (names, defaults, descriptions with
@@ -59,7 +69,6 @@ import dataclasses
 import faulthandler
 import sys
 import time
-from collections import deque
 from typing import Any
 
 import numpy as np
@@ -67,7 +76,7 @@ import rclpy
 from diagnostic_msgs.msg import KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import (
@@ -87,6 +96,7 @@ from slip_estimator.core.params import (
     renamed_in,
 )
 from slip_estimator.paramfile import NODE_ONLY_PARAMETERS, node_sections, read_yaml
+from slip_estimator.ros.cdr_out import serialize
 from slip_estimator.ros.adapter import (
     OUTPUT_TYPES,
     TOPIC_DIAGNOSTICS,
@@ -189,13 +199,16 @@ class SlipEstimatorNode(Node):
             depth = IMU_QUEUE_DEPTH if topic == TOPIC_IMU else WHEEL_QUEUE_DEPTH
             self._subs.append(self.create_subscription(
                 cls, self.adapter.input_sources[topic], self._callback(topic),
-                input_qos(depth)))
+                input_qos(depth), raw=True))
         self.get_logger().info(
             f'subscribed to {", ".join(self.adapter.input_sources.values())}; publishing '
             f'{", ".join(OUTPUT_TYPES)}')
 
         self._last_imu_wall = time.monotonic()
-        self._imu_callback_s: deque[float] = deque(maxlen=CALLBACK_WINDOW)
+        # Ring buffer of the last CALLBACK_WINDOW IMU callback durations, s (a numpy array:
+        # the percentiles read it without a copy into an array each report).
+        self._imu_callback_s = np.zeros(CALLBACK_WINDOW)
+        self._imu_callbacks = 0
         self._watchdog = self.create_timer(
             STALE_AFTER_S, self._check_imu_stale, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -256,20 +269,24 @@ class SlipEstimatorNode(Node):
         return response
 
     def _callback(self, topic: str):  # noqa: ANN202 -- rclpy callback
-        handle = self.adapter.on_message
+        handle = self.adapter.on_raw
 
-        def callback(msg: Any) -> None:
+        def callback(raw: bytes) -> None:
             t0 = time.perf_counter()
             if topic == TOPIC_IMU:
                 self._last_imu_wall = time.monotonic()
             try:
-                self._publish(handle(topic, msg))
+                outputs = handle(topic, raw)
+                if outputs:
+                    self._publish(outputs)
             except Exception as exc:  # noqa: BLE001 -- never die on one message
                 self.adapter.count_exception(topic)
                 self.get_logger().error(f'{topic} callback failed: {exc!r}',
                                         throttle_duration_sec=5.0)
             if topic == TOPIC_IMU:
-                self._imu_callback_s.append(time.perf_counter() - t0)
+                self._imu_callback_s[self._imu_callbacks % CALLBACK_WINDOW] = (
+                    time.perf_counter() - t0)
+                self._imu_callbacks += 1
         return callback
 
     def _publish(self, outputs: list[Output]) -> None:
@@ -278,13 +295,13 @@ class SlipEstimatorNode(Node):
         for topic, msg in outputs:
             if topic == TOPIC_DIAGNOSTICS:
                 self._add_callback_stats(msg)
-            self._pubs[topic].publish(msg)
+            self._pubs[topic].publish(serialize(msg))  # bytes: rclpy's publish_raw
 
     def _add_callback_stats(self, msg: Any) -> None:
         """Append the IMU callback duration percentiles to every status of a DiagnosticArray."""
-        n = len(self._imu_callback_s)
+        n = min(self._imu_callbacks, CALLBACK_WINDOW)
         if n:
-            ms = np.fromiter(self._imu_callback_s, dtype=float, count=n) * 1e3
+            ms = self._imu_callback_s[:n] * 1e3
             p50, p99 = np.percentile(ms, (50.0, 99.0))
             stats = [f'{p50:.3f}', f'{p99:.3f}', f'{ms.max():.3f}']
         else:
@@ -359,7 +376,7 @@ def main(args: list[str] | None = None) -> int:
             # rcutils writes to stderr: the message names the parameter and its range.
             rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid parameter, not starting: {exc}')
             return 2
-        rclpy.spin(node)
+        spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
@@ -370,6 +387,26 @@ def main(args: list[str] | None = None) -> int:
     finally:
         bounded_teardown(node)
     return 0
+
+
+SPIN_ONCE_TIMEOUT_S = 0.5
+"""Longest wait of one ``spin_once`` (the loop then checks that rclpy is still running)."""
+
+
+def spin(node: Node) -> None:
+    """Spin ``node`` until rclpy shuts down: the events executor in a ``spin_once`` loop
+    (see Receiving), or the single-threaded executor where there is none."""
+    try:
+        from rclpy.experimental import EventsExecutor
+        executor = EventsExecutor(context=node.context)
+    except (ImportError, AttributeError):
+        executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        while node.context.ok():
+            executor.spin_once(timeout_sec=SPIN_ONCE_TIMEOUT_S)
+    finally:
+        executor.shutdown(timeout_sec=1.0)
 
 
 TEARDOWN_TIMEOUT_S = 4.0

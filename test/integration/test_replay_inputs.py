@@ -64,16 +64,9 @@ def test_backward_clock_jump_is_named_reset_and_slip_resumes(tmp_path):
 
 
 def test_reorder_window_sorts_within_window_and_flushes_on_jump():
-    class M:
-        def __init__(self, topic, stamp_s):
-            from slip_estimator.bagio import BagMessage
-            from sensor_msgs.msg import Imu
-            msg = Imu()
-            msg.header.stamp = ns_to_stamp(round(stamp_s * S_NS))
-            self.m = BagMessage(topic, 'sensor_msgs/msg/Imu', 0, msg)
-
-    arrivals = [M('/imu/data', t) for t in (100.0, 100.2, 100.1, 100.9, 50.0, 50.1, 49.95)]
-    order = [s * 1e-9 for s, _ in ReorderWindow(0.5).order(m.m for m in arrivals)]
+    arrivals = [(round(t * S_NS), '/imu/data', k)
+                for k, t in enumerate((100.0, 100.2, 100.1, 100.9, 50.0, 50.1, 49.95))]
+    order = [s * 1e-9 for s, _, _ in ReorderWindow(0.5).order(arrivals)]
     # 100.0-100.9 in stamp order before the jump back to 50 (flush), then 49.95 first.
     assert order == pytest.approx([100.0, 100.1, 100.2, 100.9, 49.95, 50.0, 50.1])
 

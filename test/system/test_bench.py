@@ -9,6 +9,7 @@ from slip_estimator.bench.cli import SECTIONS, bench_main
 
 TINY = ['--repeats', '1', '--core-duration-s', '12', '--replay-duration-s', '12',
         '--replay-repeats', '1', '--pathfinder', '', '--live-duration-s', '4',
+        '--live-imu-rates', '250,1000',
         '--memory-duration-s', '24',
         '--memory-sample-s', '10', '--scaling-rates', '50,250', '--scaling-rate-duration-s',
         '11', '--scaling-lengths', '11,22']
@@ -38,12 +39,18 @@ def test_bench_all_sections(tmp_path, capsys):
     assert sim['estimation_realtime_ratio'] > sim['realtime_ratio'] > 0
     assert report['replay']['pathfinder_skipped']
 
-    live = report['live']
-    assert 0 < live['imu_received'] <= live['imu_sent'] == 1000
-    assert 0 <= live['wheel_received'] <= live['wheel_sent']
-    assert live['callback_p50_ms'] <= live['callback_p99_ms'] <= live['callback_max_ms']
-    assert live['end_to_end']['n'] > 0 and live['end_to_end']['p50_ms'] > 0
-    assert live['node_cpu_percent_of_one_core'] >= 0
+    (proc,) = report['replay']['process']  # whole process, no --baseline
+    assert proc['label'] == 'this tree' and proc['wall_s'] > 0 and proc['cpu_s'] > 0
+
+    runs = report['live']['runs']
+    assert [(r['label'], r['imu_rate_hz']) for r in runs] == [('this tree', 250.0),
+                                                                ('this tree', 1000.0)]
+    for live, sent in zip(runs, (1000, 4000)):
+        assert 0 < live['imu_received'] <= live['imu_sent'] == sent
+        assert 0 <= live['wheel_received'] <= live['wheel_sent']
+        assert live['callback_p50_ms'] <= live['callback_p99_ms'] <= live['callback_max_ms']
+        assert live['end_to_end']['n'] > 0 and live['end_to_end']['p50_ms'] > 0
+        assert live['node_cpu_percent_of_one_core'] >= 0
 
     mem = report['memory']
     assert mem['imu_steps'] > 5000 and len(mem['samples']) >= 3
