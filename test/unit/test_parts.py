@@ -14,7 +14,8 @@ from slip_estimator.core.frames import rpy_to_dcm
 from slip_estimator.core.history import Correction, ForwardSpeedHistory
 from slip_estimator.core.kalman import chi2_threshold
 from slip_estimator.core.measurements import ForwardSpeed
-from slip_estimator.core.outputs import slip_before_alignment, slip_estimate, unknown_slip
+from slip_estimator.core.outputs import (RESOLVED_P, slip_before_alignment, slip_estimate,
+                                         unknown_slip)
 from slip_estimator.core.params import (
     GROUPS,
     REMOVED_PARAMETERS,
@@ -26,6 +27,7 @@ from slip_estimator.core.params import (
 from slip_estimator.core.planet import EARTH, gravity_n
 from slip_estimator.core.aided_record import ANCHOR_S, AidedRecord
 from slip_estimator.core.rim_memory import MEMORY_S, RimMemory
+from slip_estimator.core.slip import p_medium_or_worse
 from slip_estimator.core.stop_clock import STOP_S, StopClock
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
@@ -498,6 +500,39 @@ def test_wheel_yaw_aid_lets_go_while_wheels_and_gyro_disagree_persistently():
     assert R[55] > 3.0 * R[5]  # after 4.5 s of disagreement (the ground share 10x)
     assert R[-1] == pytest.approx(R[5], rel=0.2)  # 4 s after they agree again
 
+
+def test_a_medium_reading_within_its_own_error_of_low_is_published_low_and_unresolved():
+    """s = 0.3 read with a 1-sigma of 0.01 is medium (P(medium+) = 1). With 0.15,
+    P = Phi(0.1 / 0.15) = 0.75 < RESOLVED_P: against a low held slip (0.04: no change beat
+    the IMU's error) it is published low, unresolved, with its P; while a change is measured
+    (no hold) or against a medium hold it stays medium. A start (rim 0.3 m/s, body 0.4:
+    s = -0.25) is medium while the rim is steady; unresolved when the rim moved by 0.1 m/s
+    since the last sample (within its timing the rim speed could be 0.4: no slip)."""
+    p, wheel = Params(), WheelSample(7, 1.0)
+    sure = slip_estimate(wheel, 0.7, 0.0, 1e-4, p, False, 1.0, held_slip=0.04)
+    assert sure.slip_class == 2 and sure.resolved and sure.p_medium_or_worse > 0.99
+    vague = slip_estimate(wheel, 0.7, 0.0, 0.15 ** 2, p, False, 1.0, held_slip=0.04)
+    assert vague.slip_class == 1 and not vague.resolved
+    assert vague.p_medium_or_worse == pytest.approx(p_medium_or_worse(0.3, vague.slip_ratio_std))
+    assert 0.5 < vague.p_medium_or_worse < RESOLVED_P
+    for held in (None, 0.3):
+        est = slip_estimate(wheel, 0.7, 0.0, 0.15 ** 2, p, False, 1.0, held_slip=held)
+        assert est.slip_class == 2 and est.resolved
+    start = WheelSample(7, 0.3)
+    assert slip_estimate(start, 0.4, 0.0, 1e-4, p, False, 1.0).slip_class == 2
+    late = slip_estimate(start, 0.4, 0.0, 1e-4, p, False, 1.0, rim_timing_var_mps2=0.1 ** 2)
+    assert late.slip_class == 1 and not late.resolved
+    slight = slip_estimate(start, 0.4, 0.0, 1e-4, p, False, 1.0, rim_timing_var_mps2=0.01 ** 2)
+    assert slight.slip_class == 2 and slight.resolved
+    assert slip_estimate(WheelSample(7, 0.0), 0.0, 0.0, 1e-4, p, True, 1.0).resolved
+
+
+def test_the_rim_timing_variance_is_the_rims_change_since_the_last_sample():
+    aid = WheelAid(Params())
+    assert aid.rim_timing_var_mps2(WheelSample(0, 0.2)) == 0.0  # no sample before
+    aid.stopping(WheelSample(0, 0.2))
+    assert aid.rim_timing_var_mps2(WheelSample(100_000_000, 0.3)) == pytest.approx(0.01)
+    assert aid.rim_timing_var_mps2(WheelSample(0, 0.3)) == 0.0  # not after the last one
 
 def test_wheels_that_just_stopped_hold_the_body_for_the_stop_time():
     """The rim speed falls below the moving threshold: for STOP_S the body is taken to stop
