@@ -12,7 +12,8 @@ from slip_estimator.core import frames, kalman
 from slip_estimator.core.error_model import curvilinear_to_ned
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import LocalEnu, Planet, radii_of_curvature
-from slip_estimator.core.slip import p_medium_or_worse, slip_class, slip_ratio, slip_ratio_std
+from slip_estimator.core.slip import (p_beyond_medium_bound, p_medium_or_worse, slip_class,
+                                      slip_ratio, slip_ratio_std)
 from slip_estimator.core.state import BG, VEL, NavState
 from slip_estimator.core.types import OdometryEstimate, SlipEstimate, WheelSample
 
@@ -22,10 +23,12 @@ from slip_estimator.core.types import OdometryEstimate, SlipEstimate, WheelSampl
 _POSE_IX = np.ix_([7, 6, 8, 1, 0, 2], [7, 6, 8, 1, 0, 2])
 _TWIST_IX = np.ix_(np.r_[VEL, BG], np.r_[VEL, BG])
 _FLU_FRD_SIGN = np.array([1.0, -1.0, -1.0])  # frames.C_FLU_FRD as a diagonal
-RESOLVED_P = 0.8
-"""Against a low held slip, a medium-or-worse reading needs at least this probability
-(:func:`_resolved`): the level of the planner's contract (of the samples published with
-``P >= 0.8``, 90 % are truly medium or worse)."""
+RESOLVED_P = 0.6
+"""A medium-or-worse class needs the reading or the hold beyond 0.2 on its side with at least
+this probability (:func:`_resolved`). Measured (real s5t1 as recorded, medium+ share of moving time; medium
+recall of the fixed short drive, seed 1, 0.944 before): 0.8: 2.7 %, 0.888; 0.65: 2.9 %,
+0.899; 0.6: 3.4 %, 0.921. The planner's contract level (0.8) would cost entries into a
+patch the step test has not confirmed yet, which the slip reads right."""
 
 
 def unknown_slip(stamp_ns: int, wheel_speed_mps: float = 0.0) -> SlipEstimate:
@@ -73,31 +76,32 @@ def slip_estimate(wheel: WheelSample, v_body_mps: float, yaw_rate_b_rps: float,
                  slip_ratio(v_body_mps - half, wheel.rim_speed_right_mps)]
     cls = slip_class(s, moving)
     p_med = p_medium_or_worse(s, s_std) if moving else 0.0
-    resolved = cls < 2 or _resolved(v_body_mps, w, rim_timing_var_mps2, p_med, held_slip)
+    resolved = cls < 2 or _resolved(v_body_mps, w, s, s_std, rim_timing_var_mps2, held_slip)
     return SlipEstimate(wheel.stamp_ns, s, s_std, cls if resolved else 1, v_body_mps,
                         math.sqrt(max(var_v_mps2, 0.0)), w, sides[0], sides[1], p_med,
                         resolved)
 
 
-def _resolved(v_body_mps: float, w: float, rim_timing_var_mps2: float, p_med: float,
+def _resolved(v_body_mps: float, w: float, s: float, s_std: float, rim_timing_var_mps2: float,
               held_slip: float | None) -> bool:
-    """Whether a medium-or-worse reading (body speed ``v_body_mps``, rim speed ``w``) resolves
-    its class. Not where
+    """Whether a medium-or-worse reading ``s`` (1-sigma ``s_std``; body speed ``v_body_mps``,
+    rim speed ``w``) resolves its class. Not where
 
     * the rim speed, placed within its timing (``rim_timing_var_mps2``: a start or a stop,
       where the count difference lags the INS), also gives a low slip: on the real s5t1 log
       74 of the 104 samples read medium or worse were such; or
-    * the slip model holds a low slip (no change beat the IMU's measured error: the step
-      test) and the reading's own error leaves more than ``1 - RESOLVED_P`` on the low class
-      (an aided INS flickering across 0.2 while the hold is 0.04-0.15 on test17run and s5t1;
-      a hold of 0.199 on the 50-Hz robot, truth 0.35, published medium on 41 % of samples by
-      chance before).
+    * neither the reading nor the slip model's hold (a change that beat the IMU's measured
+      error) is beyond 0.2 on its side with probability ``RESOLVED_P`` under the published
+      1-sigma: an aided INS flickering across 0.2 under a hold of 0.04-0.15 (test17run,
+      s5t1); a hold of 0.199 on the 50-Hz robot, truth 0.35, read medium on 41 % of samples by
+      chance before; a hold of 0.22 at the end of a chain whose 1-sigma is 1.0 (the 30-Hz
+      consumer robot).
     """
     dw = math.sqrt(rim_timing_var_mps2)
     if dw > 0.0 and min(slip_class(slip_ratio(v_body_mps, w + d), True) for d in (-dw, dw)) < 2:
         return False
-    held_low = held_slip is not None and slip_class(held_slip, True) < 2
-    return not held_low or p_med >= RESOLVED_P
+    return any(x is not None and p_beyond_medium_bound(x, s_std) >= RESOLVED_P
+               for x in (s, held_slip))
 
 
 def base_llh(state: NavState, l_bw_b: np.ndarray, planet: Planet) -> np.ndarray:

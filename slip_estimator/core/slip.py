@@ -58,6 +58,15 @@ def p_medium_or_worse(s: float, s_std: float) -> float:
     return 0.5 * (math.erfc((MEDIUM_LOWER_BOUND - s) * k) + math.erfc((MEDIUM_LOWER_BOUND + s) * k))
 
 
+def p_beyond_medium_bound(s: float, s_std: float) -> float:
+    """Probability that the slip lies beyond 0.2 on the side of ``s``, ``P(sign(s) S > 0.2)``
+    for ``S ~ N(s, s_std^2)``: 1/2 at the bound and for a 1-sigma too wide to tell (where
+    :func:`p_medium_or_worse` counts the far tail too and tends to 1)."""
+    if s_std <= 0.0:
+        return 1.0 if abs(s) > MEDIUM_LOWER_BOUND else 0.0
+    return 0.5 * math.erfc((MEDIUM_LOWER_BOUND - abs(s)) / (s_std * math.sqrt(2.0)))
+
+
 def slip_class(s: float, moving: bool) -> int:
     """0 none (not moving), 1 low (|s| <= 0.2), 2 medium (<= 0.4), 3 high (<= 0.7), 4 extreme."""
     if not moving:

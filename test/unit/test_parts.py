@@ -27,7 +27,7 @@ from slip_estimator.core.params import (
 from slip_estimator.core.planet import EARTH, gravity_n
 from slip_estimator.core.aided_record import ANCHOR_S, AidedRecord
 from slip_estimator.core.rim_memory import MEMORY_S, RimMemory
-from slip_estimator.core.slip import p_medium_or_worse
+from slip_estimator.core.slip import p_beyond_medium_bound, p_medium_or_worse
 from slip_estimator.core.stop_clock import STOP_S, StopClock
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
@@ -502,22 +502,23 @@ def test_wheel_yaw_aid_lets_go_while_wheels_and_gyro_disagree_persistently():
 
 
 def test_a_medium_reading_within_its_own_error_of_low_is_published_low_and_unresolved():
-    """s = 0.3 read with a 1-sigma of 0.01 is medium (P(medium+) = 1). With 0.15,
-    P = Phi(0.1 / 0.15) = 0.75 < RESOLVED_P: against a low held slip (0.04: no change beat
-    the IMU's error) it is published low, unresolved, with its P; while a change is measured
-    (no hold) or against a medium hold it stays medium. A start (rim 0.3 m/s, body 0.4:
-    s = -0.25) is medium while the rim is steady; unresolved when the rim moved by 0.1 m/s
-    since the last sample (within its timing the rim speed could be 0.4: no slip)."""
+    """s = 0.3 read with a 1-sigma of 0.01 is medium. s = 0.22 read with 0.1 is beyond 0.2 with
+    P = Phi(0.02 / 0.1) = 0.58 < RESOLVED_P: published low, unresolved, with its two-sided
+    P(medium+), unless the slip model holds a medium slip it resolves (0.3: Phi(1) = 0.84);
+    not a low hold, nor a medium one whose 1-sigma is too wide to place it (0.22 +- 1.0: the
+    end of a chain of changes on a consumer IMU). A start (rim 0.3 m/s, body 0.4: s = -0.25)
+    is medium while the rim is steady; unresolved when the rim moved by 0.1 m/s since the
+    last sample (within its timing the rim speed could be 0.4: no slip)."""
     p, wheel = Params(), WheelSample(7, 1.0)
     sure = slip_estimate(wheel, 0.7, 0.0, 1e-4, p, False, 1.0, held_slip=0.04)
     assert sure.slip_class == 2 and sure.resolved and sure.p_medium_or_worse > 0.99
-    vague = slip_estimate(wheel, 0.7, 0.0, 0.15 ** 2, p, False, 1.0, held_slip=0.04)
-    assert vague.slip_class == 1 and not vague.resolved
-    assert vague.p_medium_or_worse == pytest.approx(p_medium_or_worse(0.3, vague.slip_ratio_std))
-    assert 0.5 < vague.p_medium_or_worse < RESOLVED_P
-    for held in (None, 0.3):
-        est = slip_estimate(wheel, 0.7, 0.0, 0.15 ** 2, p, False, 1.0, held_slip=held)
-        assert est.slip_class == 2 and est.resolved
+    for held in (None, 0.04, 0.3):
+        est = slip_estimate(wheel, 0.78, 0.0, 0.1 ** 2, p, False, 1.0, held_slip=held)
+        assert est.p_medium_or_worse == pytest.approx(p_medium_or_worse(0.22, est.slip_ratio_std))
+        assert p_beyond_medium_bound(0.22, est.slip_ratio_std) < RESOLVED_P
+        assert (est.slip_class, est.resolved) == ((2, True) if held == 0.3 else (1, False))
+    wide = slip_estimate(wheel, 0.78, 0.0, 1.0, p, False, 1.0, held_slip=0.22)
+    assert wide.slip_class == 1 and not wide.resolved and wide.p_medium_or_worse > RESOLVED_P
     start = WheelSample(7, 0.3)
     assert slip_estimate(start, 0.4, 0.0, 1e-4, p, False, 1.0).slip_class == 2
     late = slip_estimate(start, 0.4, 0.0, 1e-4, p, False, 1.0, rim_timing_var_mps2=0.1 ** 2)
@@ -625,3 +626,4 @@ def test_a_change_continues_from_the_aided_mean_before_its_onset() -> None:
     assert m.last_ns == onset
     early = rec.before(round(-1.0 * ns))  # before the first sample: the oldest one
     assert early.v_free_mps == 0.0 and early.t_ns == 0
+
