@@ -25,10 +25,11 @@ _TWIST_IX = np.ix_(np.r_[VEL, BG], np.r_[VEL, BG])
 _FLU_FRD_SIGN = np.array([1.0, -1.0, -1.0])  # frames.C_FLU_FRD as a diagonal
 RESOLVED_P = 0.6
 """A medium-or-worse class needs the reading or the hold beyond 0.2 on its side with at least
-this probability (:func:`_resolved`). Measured (real s5t1 as recorded, medium+ share of moving time; medium
-recall of the fixed short drive, seed 1, 0.944 before): 0.8: 2.7 %, 0.888; 0.65: 2.9 %,
-0.899; 0.6: 3.4 %, 0.921. The planner's contract level (0.8) would cost entries into a
-patch the step test has not confirmed yet, which the slip reads right."""
+this probability (:func:`_resolved`). Measured on the two-sided P(medium+) against a low hold
+(real s5t1 as recorded, medium+ share of moving time; medium recall of the fixed short drive
+seed 1, 0.944 before): 0.8: 2.7 %, 0.888; 0.65: 2.9 %, 0.899; 0.6: 3.4 %, 0.921. The
+planner's contract level (0.8) would cost entries into a patch the step test has not
+confirmed yet, which the slip reads right."""
 
 
 def unknown_slip(stamp_ns: int, wheel_speed_mps: float = 0.0) -> SlipEstimate:
@@ -52,8 +53,9 @@ def slip_estimate(wheel: WheelSample, v_body_mps: float, yaw_rate_b_rps: float,
     ``v_body_mps`` (variance ``var_v_mps2``) at its instant; per side with the effective
     ``track_width_m`` and the yaw rate (FRD) when the sample has sides.
     ``rim_timing_var_mps2``: the rim speed's variance from its timing against the INS (beyond
-    the declared wheel noise; :meth:`WheelAid.rim_timing_var_mps2`). The class is the slip's
-    unless the reading does not resolve it (:data:`RESOLVED_P`)."""
+    the declared wheel noise; :meth:`WheelAid.rim_timing_var_mps2`); ``held_slip``: the slip
+    model's hold (:attr:`WheelAid.held_slip`). The class is the slip's unless the reading does
+    not resolve it (:func:`_resolved`): then low, marked unresolved."""
     var_w = p.wheel_speed_std_mps ** 2 + rim_timing_var_mps2
     w = wheel.rim_speed_mps
     # "Not moving" when the rim speed is below the threshold and the body speed is not

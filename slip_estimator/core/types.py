@@ -94,7 +94,8 @@ class SlipEstimate:
     p_medium_or_worse : probability that the slip is medium or worse, from the slip ratio and
         its 1-sigma (:func:`slip_estimator.core.slip.p_medium_or_worse`); NaN when unknown.
     resolved : the class is one the slip and its 1-sigma resolve; False where a medium-or-worse
-        reading is within its own error of the low class (then ``slip_class`` is low).
+        reading is within its error (or the rim's timing) of the low class and no resolved
+        hold supports it (then ``slip_class`` is low).
     """
 
     stamp_ns: int
