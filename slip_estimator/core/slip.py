@@ -55,7 +55,8 @@ def p_medium_or_worse(s: float, s_std: float) -> float:
     if s_std <= 0.0:
         return 1.0 if abs(s) > MEDIUM_LOWER_BOUND else 0.0
     k = 1.0 / (s_std * math.sqrt(2.0))  # P(S > b) = Phi((s - b) / s_std) = erfc(...) / 2
-    return 0.5 * (math.erfc((MEDIUM_LOWER_BOUND - s) * k) + math.erfc((MEDIUM_LOWER_BOUND + s) * k))
+    b = MEDIUM_LOWER_BOUND
+    return 0.5 * (math.erfc((b - s) * k) + math.erfc((b + s) * k))
 
 
 def p_beyond_medium_bound(s: float, s_std: float) -> float:
