@@ -12,9 +12,15 @@ mixed            body-side slip and wheels spinning up at an unchanged body spee
 patches          seeded random drives under wheel-rate control: patches of every class,
                  downhill run-aheads on hills (:func:`slip_estimator.sim.drives.patch_scenario`)
 rough            the same on rough ground (terrain undulation, 3x vibration)
+skid_steer_30hz, fifty_hz
+                 the robot profiles of :mod:`slip_estimator.sim.robots` (consumer 30-Hz IMU
+                 starting in motion; 50-Hz industrial IMU), through the core
 test17run        plain forward-speed RMSE against RTK; wheel-side, body-side (four window
                  patterns) and mixed injection (four patterns): balanced accuracy and
                  significant-slip F1, and the means over the patterns
+
+Beside every detection figure stands the false-alarm rate: the share of samples whose truth
+is low slip (moving, ``|s| <= 0.2``) read medium or worse (:func:`false_alarm_share`).
 
 ``--set NAME=VALUE`` overrides a parameter everywhere (to compare a setting without editing
 code); ``--json FILE`` writes every figure. Cases run in ``--jobs`` worker processes.
@@ -31,7 +37,10 @@ from pathlib import Path
 from typing import Any
 
 FAMILIES = ('short', 'default', 'mixed', 'patches', 'rough')
-"""The drive families scored, in print order (the names of ``sim.bag.SCENARIOS``)."""
+"""The drive families scored by default, in print order (the names of ``sim.bag.SCENARIOS``)."""
+ROBOT_FAMILIES = ('skid_steer_30hz', 'fifty_hz')
+"""Robot profiles that can be scored as families (``sim.robots.ROBOTS``; the gravity-free one
+publishes no slip by design)."""
 BOUND_SPAN_S = 1.5
 """Reading span of :func:`reading_bound`: a 1-s transition between two 0.5-s means."""
 _BOUND_GRID_S = 0.5
@@ -50,16 +59,35 @@ def sim_case(family: str, seed: int, overrides: dict[str, Any], bound: bool = Fa
     from slip_estimator.sim import simulate
     from slip_estimator.sim.bag import SCENARIOS, sim_params
 
-    r = simulate(SCENARIOS[family](seed))
-    params = sim_params(r).replace(**overrides)
+    from slip_estimator.sim.robots import ROBOTS
+
+    if family in ROBOTS:
+        profile = ROBOTS[family](seed)
+        r = simulate(profile.scenario)
+        params = sim_params(r, profile.wheel_input, profile.joint_columns)
+    else:
+        r = simulate(SCENARIOS[family](seed))
+        params = sim_params(r)
+    params = params.replace(**overrides)
     s = score_on_sim(r, params).slip
     out = {'family': family, 'seed': seed, 'balanced_accuracy': s.balanced_accuracy,
            'sig_f1': s.significant_f1, 'recall': [float(x) for x in s.recall],
            'slip_z2_mean': s.slip_z2_mean, 'slip_within_3sigma': s.slip_within_3sigma,
-           'alarms_at_rest': int(s.counts[2:, 0].sum())}
+           'alarms_at_rest': int(s.counts[2:, 0].sum()),
+           'false_alarm': false_alarm_share(s.counts),
+           'slip_within_2sigma': s.slip_within_2sigma,
+           'p_medium_precision': s.p_medium_precision,
+           'n_p_medium_confident': s.n_p_medium_confident}
     if bound:
         out['bound_recall'] = reading_bound(r, params)
     return out
+
+
+def false_alarm_share(counts: Any) -> float:
+    """Share of the samples whose truth is low slip that were read medium or worse, from a
+    confusion matrix ``counts[est, truth]`` (classes 0 none .. 4 extreme); NaN without any."""
+    low = counts[:, 1].sum()
+    return float(counts[2:, 1].sum() / low) if low else float('nan')
 
 
 def reading_bound(r: Any, params: Any) -> list[float]:
@@ -101,7 +129,9 @@ def real_case(name: str, log_path: str, overrides: dict[str, Any]) -> dict[str, 
     log = pf.read_pathfinder_mat(log_path)
     params = pf.pathfinder_params(log).replace(**overrides)
     if name == 'plain':
-        return {'case': name, 'speed_rmse_mps': score_on_log(log, params).speed_rmse_mps}
+        r = score_on_log(log, params)
+        return {'case': name, 'speed_rmse_mps': r.speed_rmse_mps,
+                'false_alarm': false_alarm_share(r.slip.counts)}
     if name == 'wheel':
         r = score_on_log(log, params, TEST17RUN_WINDOWS)
     elif name.startswith('mixed'):
@@ -111,7 +141,8 @@ def real_case(name: str, log_path: str, overrides: dict[str, Any]) -> dict[str, 
         r = score_on_log(log, params, (), body_windows=TEST17RUN_BODY_PATTERNS[int(name[4:])])
     return {'case': name, 'balanced_accuracy': r.slip.balanced_accuracy,
             'sig_f1': r.slip.significant_f1, 'speed_rmse_mps': r.speed_rmse_mps,
-            'slip_z2_mean': r.slip.slip_z2_mean, 'slip_within_3sigma': r.slip.slip_within_3sigma}
+            'slip_z2_mean': r.slip.slip_z2_mean, 'slip_within_3sigma': r.slip.slip_within_3sigma,
+            'false_alarm': false_alarm_share(r.slip.counts)}
 
 
 def _run(task: tuple) -> dict[str, Any]:
@@ -137,11 +168,13 @@ def score_matrix(families: list[str], seeds: list[int], log_path: Path | None,
 
 
 def summary_lines(m: dict[str, Any]) -> list[str]:
-    """The printed table: per family the mean and worst balanced accuracy, the mean F1, how
-    honest the published slip sigma is (median over drives of the mean ``z^2``, 1 when honest;
-    mean share within 3 sigma), the slip alarms at rest (samples read medium or above where
-    the truth is at rest, summed over the drives) and each drive's balanced accuracy; then the
-    real cases."""
+    """The printed table: per family the mean and worst balanced accuracy, the mean F1, the
+    mean false-alarm share (:func:`false_alarm_share`), how honest the published slip sigma
+    is (median over drives of the mean ``z^2``, 1 when honest; mean share within 3 sigma), the
+    slip alarms at rest (samples read medium or above where the truth is at rest, summed over
+    the drives) and each drive's balanced accuracy; then the calibration of the published
+    sigma and probability (mean share of the truth within 2 sigma; the share truly medium or
+    worse of all samples published with P(medium+) >= 0.8); then the real cases."""
     lines = []
     families = list(dict.fromkeys(r['family'] for r in m['sim']))
     for f in families:
@@ -150,11 +183,20 @@ def summary_lines(m: dict[str, Any]) -> list[str]:
         f1 = [r['sig_f1'] for r in rows]
         z2 = sorted(r['slip_z2_mean'] for r in rows)
         in3 = [r['slip_within_3sigma'] for r in rows]
+        fa = _nanmean([r['false_alarm'] for r in rows])
         lines.append(f'{f:8s} balanced mean {sum(bal) / len(bal):.3f} min {min(bal):.3f}  '
-                     f'F1 mean {sum(f1) / len(f1):.3f}  sigma z2 {z2[len(z2) // 2]:.1f} '
+                     f'F1 mean {sum(f1) / len(f1):.3f}  false alarms {100 * fa:.1f} %  '
+                     f'sigma z2 {z2[len(z2) // 2]:.1f} '
                      f'in 3 sigma {sum(in3) / len(in3):.2f}  at-rest alarms '
                      f'{sum(r["alarms_at_rest"] for r in rows)}  per seed '
                      + ' '.join(f'{x:.2f}' for x in bal))
+        n_conf = sum(r['n_p_medium_confident'] for r in rows)
+        hits = sum(r['p_medium_precision'] * r['n_p_medium_confident'] for r in rows
+                   if r['n_p_medium_confident'])
+        lines.append(f'{"":8s} calibration: truth within 2 sigma '
+                     f'{_nanmean([r["slip_within_2sigma"] for r in rows]):.2f}, '
+                     f'P(medium+) >= 0.8 truly medium+ '
+                     + (f'{hits / n_conf:.2f} of {n_conf}' if n_conf else 'n/a (none)'))
         if all('bound_recall' in r for r in rows):
             per = [_nanmean([r['bound_recall'][c] for r in rows]) for c in range(4)]
             lines.append(f'{"":8s} reading bound ({BOUND_SPAN_S:.1f} s) recall low/medium/high/'
@@ -166,10 +208,12 @@ def summary_lines(m: dict[str, Any]) -> list[str]:
     for r in m['real']:
         if 'balanced_accuracy' in r:
             lines.append(f'test17run {r["case"]:6s} balanced {r["balanced_accuracy"]:.3f} '
-                         f'F1 {r["sig_f1"]:.3f}  sigma z2 {r["slip_z2_mean"]:.1f} '
+                         f'F1 {r["sig_f1"]:.3f}  false alarms {100 * r["false_alarm"]:.1f} %  '
+                         f'sigma z2 {r["slip_z2_mean"]:.1f} '
                          f'in 3 sigma {r["slip_within_3sigma"]:.2f}')
         else:
-            lines.append(f'test17run plain  forward-speed RMSE {r["speed_rmse_mps"]:.4f} m/s')
+            lines.append(f'test17run plain  forward-speed RMSE {r["speed_rmse_mps"]:.4f} m/s  '
+                         f'false alarms {100 * r["false_alarm"]:.1f} %')
     for kind in ('body', 'mixed'):  # one pattern flips on single alarms: judge the mean
         rows = [r for r in m['real'] if r['case'].rstrip('0123456789') == kind
                 and 'balanced_accuracy' in r]
@@ -201,7 +245,8 @@ def accuracy_main(argv: list[str] | None = None) -> int:
                     'test17run log with injected slip (through the core, declared parameters).',
         epilog='example: slip-estimator accuracy --seeds 3')
     ap.add_argument('--families', default=','.join(FAMILIES),
-                    help='comma-separated drive families (default: %(default)s)')
+                    help='comma-separated drive families (default: %(default)s; also the '
+                         'robot profiles ' + ', '.join(ROBOT_FAMILIES) + ')')
     ap.add_argument('--seeds', type=int, default=12, help='seeds 0..N-1 per family')
     ap.add_argument('--data-dir', type=Path, default=None,
                     help='folder with test17run.mat (the real cases are skipped without it)')
@@ -214,10 +259,10 @@ def accuracy_main(argv: list[str] | None = None) -> int:
                          '(the IMU\'s ceiling for any slip model; ~20 s more per drive)')
     args = ap.parse_args(argv)
     families = [f for f in args.families.split(',') if f]
-    unknown = [f for f in families if f not in FAMILIES]
+    unknown = [f for f in families if f not in FAMILIES + ROBOT_FAMILIES]
     if unknown:
         print(f'slip-estimator accuracy: unknown family {unknown[0]!r} (one of: '
-              f'{", ".join(FAMILIES)})', file=sys.stderr)
+              f'{", ".join(FAMILIES + ROBOT_FAMILIES)})', file=sys.stderr)
         return 2
     overrides = {}
     for item in args.set:

@@ -241,7 +241,8 @@ def score_on_sim(result: Any, params: Params, effects: Effects = Effects()) -> L
     moving = np.interp(odo[:, 0], imu_ns, r.speed_mps) > 0.05
     slip = evaluate_slip([o.stamp_ns for o in out], [o.slip_ratio for o in out],
                          [o.slip_class for o in out], r.stamps_ns(r.wheel_t_s), r.slip_true,
-                         r.slip_class, est_slip_std=[o.slip_ratio_std for o in out])
+                         r.slip_class, est_slip_std=[o.slip_ratio_std for o in out],
+                         est_p_medium=[o.p_medium_or_worse for o in out])
     return LogScore(slip, float(np.sqrt(np.mean(np.square(odo[moving, 1] - v_true[moving])))),
                     est)
 
@@ -288,7 +289,8 @@ def score_on_log(log: Any, params: Params, windows: Sequence[Window] = (),
     shift = data.wheel_ns[0] - clean.wheel_ns[0]
     slip = evaluate_slip([o.stamp_ns - shift for o in out], [o.slip_ratio for o in out],
                          [o.slip_class for o in out], truth.stamp_ns, s_true, cls_true,
-                         est_slip_std=[o.slip_ratio_std for o in out])
+                         est_slip_std=[o.slip_ratio_std for o in out],
+                         est_p_medium=[o.p_medium_or_worse for o in out])
     v_true = gnss_speed(log, odo[:, 0] * 1e-9) - np.interp(odo[:, 0] * 1e-9, imu_t_s, deficit)
     driving = np.isfinite(v_true) & (v_true > 0.1)
     rmse = float(np.sqrt(np.mean((odo[driving, 1] - v_true[driving]) ** 2))) \

@@ -72,6 +72,11 @@ class SlipResult(_Record):
         truth's own error.
     slip_within_3sigma : share of those samples with ``|z| <= 3`` (0.997 for an honest
         Gaussian sigma).
+    slip_within_2sigma : the same with ``|z| <= 2`` (0.954 for an honest Gaussian sigma).
+    p_medium_precision : of the moving, covered samples published with a probability of
+        medium-or-worse slip of at least ``P_MEDIUM_CONFIDENT``, the share whose truth is
+        medium or worse; NaN without probabilities or without such samples.
+    n_p_medium_confident : how many samples that share is of.
     """
 
     counts: np.ndarray
@@ -89,6 +94,9 @@ class SlipResult(_Record):
     n_matched: int
     slip_z2_mean: float = float('nan')
     slip_within_3sigma: float = float('nan')
+    slip_within_2sigma: float = float('nan')
+    p_medium_precision: float = float('nan')
+    n_p_medium_confident: int = 0
 
 
 @dataclass(frozen=True)
@@ -165,11 +173,16 @@ def confusion_matrix(est_class: np.ndarray, truth_class: np.ndarray) -> tuple[np
     return counts, percent
 
 
+P_MEDIUM_CONFIDENT = 0.8
+"""A published probability of medium-or-worse slip from which a planner would act on it."""
+
+
 def evaluate_slip(est_stamp_ns: np.ndarray, est_slip: np.ndarray, est_class: np.ndarray,
                   truth_stamp_ns: np.ndarray, truth_slip: np.ndarray, truth_class: np.ndarray,
-                  tol_s: float = 0.05, est_slip_std: np.ndarray | None = None) -> SlipResult:
-    """Compare an estimated slip series (and its published 1-sigma ``est_slip_std``, if
-    given) with a truth slip series.
+                  tol_s: float = 0.05, est_slip_std: np.ndarray | None = None,
+                  est_p_medium: np.ndarray | None = None) -> SlipResult:
+    """Compare an estimated slip series (and its published 1-sigma ``est_slip_std`` and
+    probability of medium-or-worse slip ``est_p_medium``, if given) with a truth slip series.
 
     Every truth sample is matched to the nearest estimate within ``tol_s``; truth samples
     without one count as "unknown" (they lower coverage and the strict balanced accuracy).
@@ -181,6 +194,8 @@ def evaluate_slip(est_stamp_ns: np.ndarray, est_slip: np.ndarray, est_class: np.
     est_class = np.asarray(est_class, dtype=int)[order]
     est_std = (np.full(len(est_slip), np.nan) if est_slip_std is None
                else np.asarray(est_slip_std, dtype=float)[order])
+    est_p = (np.full(len(est_slip), np.nan) if est_p_medium is None
+             else np.asarray(est_p_medium, dtype=float)[order])
     truth_slip = np.asarray(truth_slip, dtype=float)
     truth_class = np.asarray(truth_class, dtype=int)
     idx = match_nearest(truth_stamp_ns, est_stamp_ns, round(tol_s * 1e9))
@@ -226,9 +241,13 @@ def evaluate_slip(est_stamp_ns: np.ndarray, est_slip: np.ndarray, est_class: np.
     z = (matched_slip - truth_slip)[sigma_ok] / std[sigma_ok]
     z2_mean = float(np.mean(z * z)) if z.size else float('nan')
     within = float(np.mean(np.abs(z) <= 3.0)) if z.size else float('nan')
+    within2 = float(np.mean(np.abs(z) <= 2.0)) if z.size else float('nan')
+    confident = covered & (at_match(est_p, np.nan) >= P_MEDIUM_CONFIDENT)
+    n_conf = int(confident.sum())
+    p_precision = float(np.mean(truth_pos[confident])) if n_conf else float('nan')
     return SlipResult(counts, percent, n_truth, n_unknown, recall, balanced, balanced_strict,
                       coverage, float(precision), float(rec), float(f1), mae,
-                      int(matched.sum()), z2_mean, within)
+                      int(matched.sum()), z2_mean, within, within2, p_precision, n_conf)
 
 
 def evaluate_speed(est_stamp_ns: np.ndarray, est_v_mps: np.ndarray, truth_stamp_ns: np.ndarray,

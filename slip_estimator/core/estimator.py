@@ -243,9 +243,11 @@ class SlipEstimator:
         st = self.filter.state
         var_v = (self.filter.variance(self.forward.jacobian(st))
                  + self.wheel_aid.held_speed_var_mps2(wheel.rim_speed_mps))
+        rim_var = self.wheel_aid.rim_timing_var_mps2(wheel)
         still = self.wheel_aid.stopping(wheel) or self.updater.is_stationary
         est = outputs.slip_estimate(wheel, at.v_fwd_mps, at.yaw_rate_b_rps, var_v,
-                                    self.params, still, self.track.width_m)
+                                    self.params, still, self.track.width_m, rim_var,
+                                    self.wheel_aid.held_slip)
         self._apply_aid(self.wheel_aid.decide(wheel, at, est, st.C_b_n, turning,
                                               self.filter.tilt_std_rad()), at)
         return est

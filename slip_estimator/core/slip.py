@@ -1,4 +1,5 @@
-"""Slip ratio, its uncertainty and its class (paper eq. 1 and sec. 5.3)."""
+"""Slip ratio, its uncertainty, its class (paper eq. 1 and sec. 5.3) and the probability that
+it is medium or worse."""
 from __future__ import annotations
 
 import math
@@ -40,6 +41,31 @@ def slip_ratio_std(v_body_mps: float, v_rim_mps: float, var_body: float, var_rim
     else:
         return 1.0
     return min(1.0, math.sqrt(d_v * d_v * var_body + d_w * d_w * var_rim))
+
+
+MEDIUM_LOWER_BOUND = SLIP_CLASS_UPPER_BOUNDS[0]
+"""``|s|`` above which the slip is medium or worse."""
+
+
+def p_medium_or_worse(s: float, s_std: float) -> float:
+    """Probability that the slip is medium or worse, ``P(|S| > 0.2)`` for ``S ~ N(s, s_std^2)``
+    (the published slip and its 1-sigma); NaN when either is not finite."""
+    if not (math.isfinite(s) and math.isfinite(s_std)):
+        return float('nan')
+    if s_std <= 0.0:
+        return 1.0 if abs(s) > MEDIUM_LOWER_BOUND else 0.0
+    k = 1.0 / (s_std * math.sqrt(2.0))  # P(S > b) = Phi((s - b) / s_std) = erfc(...) / 2
+    b = MEDIUM_LOWER_BOUND
+    return 0.5 * (math.erfc((b - s) * k) + math.erfc((b + s) * k))
+
+
+def p_beyond_medium_bound(s: float, s_std: float) -> float:
+    """Probability that the slip lies beyond 0.2 on the side of ``s``, ``P(sign(s) S > 0.2)``
+    for ``S ~ N(s, s_std^2)``: 1/2 at the bound and for a 1-sigma too wide to tell (where
+    :func:`p_medium_or_worse` counts the far tail too and tends to 1)."""
+    if s_std <= 0.0:
+        return 1.0 if abs(s) > MEDIUM_LOWER_BOUND else 0.0
+    return 0.5 * math.erfc((MEDIUM_LOWER_BOUND - abs(s)) / (s_std * math.sqrt(2.0)))
 
 
 def slip_class(s: float, moving: bool) -> int:

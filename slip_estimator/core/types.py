@@ -91,6 +91,11 @@ class SlipEstimate:
     body_speed_std_mps : its 1-sigma, m/s.
     wheel_speed_mps : rim speed r*omega, m/s.
     slip_ratio_left, slip_ratio_right : per-side slip when the sides are known, else None.
+    p_medium_or_worse : probability that the slip is medium or worse, from the slip ratio and
+        its 1-sigma (:func:`slip_estimator.core.slip.p_medium_or_worse`); NaN when unknown.
+    resolved : the class is one the slip and its 1-sigma resolve; False where a medium-or-worse
+        reading is within its error (or the rim's timing) of the low class and no resolved
+        hold supports it (then ``slip_class`` is low).
     """
 
     stamp_ns: int
@@ -102,6 +107,8 @@ class SlipEstimate:
     wheel_speed_mps: float
     slip_ratio_left: float | None = None
     slip_ratio_right: float | None = None
+    p_medium_or_worse: float = float('nan')
+    resolved: bool = True
 
     @property
     def class_name(self) -> str:

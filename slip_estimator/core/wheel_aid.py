@@ -70,6 +70,23 @@ class WheelAid:
         var_mps2 = self._aid_std_mps ** 2 + (_RECOVERY_SLIP_STD * rim_speed_mps) ** 2
         return AidDecision(rim_speed_mps, var_mps2, repair=True)
 
+    def rim_timing_var_mps2(self, wheel: WheelSample) -> float:
+        """Variance of the rim speed from its timing against the INS, m^2/s^2: the change since
+        the last sample, squared (call before :meth:`stopping`). A count difference describes
+        its interval, not an instant, and its latency is declared, not measured: a rim speed
+        that changes is placed to within one sample interval (on the real s5t1 log the body led
+        the rim by about one 10-Hz sample at every start and stop; 74 of its 104 samples read
+        medium or worse were there)."""
+        if self._last is None or wheel.stamp_ns <= self._last[0]:
+            return 0.0
+        return (wheel.rim_speed_mps - self._last[1]) ** 2
+
+    @property
+    def held_slip(self) -> float | None:
+        """The slip the slip model holds (a change it accepted, or the ground's); None while it
+        measures, at rest, or without the hold mode."""
+        return self.slip_model.slip_hold if self._mode == 'hold' else None
+
     def held_speed_var_mps2(self, rim_speed_mps: float) -> float:
         """The held slip's own body-speed variance (``SlipModel.held_speed_var_mps2``); 0
         without the hold mode."""

@@ -107,6 +107,8 @@ def slip_to_diagnostic_array(est: SlipEstimate, hardware_id: str) -> DiagnosticA
         'body_speed': est.body_speed_mps,
         'body_speed_std': est.body_speed_std_mps,
         'wheel_speed': est.wheel_speed_mps,
+        'p_medium_or_worse': est.p_medium_or_worse,
+        'slip_resolved': est.resolved,
     }
     if est.slip_ratio_left is not None:
         values['slip_ratio_left'] = est.slip_ratio_left

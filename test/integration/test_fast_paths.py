@@ -527,7 +527,7 @@ def test_slot_built_messages_equal_the_constructed_ones(monkeypatch):
 
 @pytest.mark.parametrize('field', ['slip_ratio', 'slip_ratio_std', 'body_speed_mps',
                                    'body_speed_std_mps', 'wheel_speed_mps', 'slip_ratio_left',
-                                   'slip_ratio_right'])
+                                   'slip_ratio_right', 'p_medium_or_worse'])
 @pytest.mark.parametrize('bad', [math.nan, math.inf, -math.inf])
 def test_slip_messages_are_finite_by_construction(field, bad):
     """The adapter publishes slip messages without the guard: whatever non-finite value a

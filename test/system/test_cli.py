@@ -50,6 +50,12 @@ def test_accuracy_scores_a_drive_and_says_what_it_skipped(tmp_path, capsys):
     assert [r['seed'] for r in m['sim']] == [0] and not m['real']
     assert m['sim'][0]['balanced_accuracy'] >= 0.9
     assert m['sim'][0]['alarms_at_rest'] <= 3 and 'at-rest alarms' in out
+    # Beside the detection figures: the false alarms (truth low read medium or worse: 0.20
+    # before the slip resolution rule, 0.16 now)
+    # and the published sigma's and P(medium+)'s calibration (measured 1.00 and 0.97).
+    assert 'false alarms' in out and 'calibration: truth within 2 sigma' in out
+    assert m['sim'][0]['false_alarm'] <= 0.18 and m['sim'][0]['slip_within_2sigma'] >= 0.9
+    assert m['sim'][0]['p_medium_precision'] >= 0.9
     bound = m['sim'][0]['bound_recall']
     assert len(bound) == 4 and all(0.0 <= b <= 1.0 for b in bound if b is not None)
     assert 'reading bound (1.5 s)' in out

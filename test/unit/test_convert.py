@@ -201,6 +201,10 @@ def test_slip_diagnostic_values_and_unknown():
     assert {'slip_ratio', 'slip_class', 'slip_ratio_std', 'body_speed', 'wheel_speed',
             'slip_ratio_left', 'slip_ratio_right'} <= set(kv)
     assert float(kv['slip_ratio']) == 0.3 and kv['slip_class'] == '2'
+    assert kv['p_medium_or_worse'] == 'unknown' and kv['slip_resolved'] == 'true'
+    kv = values(publish.slip_to_diagnostic_array(
+        slip(slip_class=1, p_medium_or_worse=0.75, resolved=False), 'base_link'))
+    assert kv['p_medium_or_worse'] == '0.75' and kv['slip_resolved'] == 'false'
     kv = values(publish.slip_to_diagnostic_array(
         slip(slip_ratio=math.nan, slip_ratio_std=math.inf, slip_class=-1,
              body_speed_mps=math.nan), 'base_link'))

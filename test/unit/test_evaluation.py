@@ -125,6 +125,21 @@ def test_slip_sigma_honesty_is_the_mean_z2_of_the_published_sigma(stated_over_tr
     assert r.slip_within_3sigma == pytest.approx(math.erf(3.0 * stated_over_true / math.sqrt(2.0)),
                                                  abs=0.01)
     assert math.isnan(evaluate_slip(t, est, cls, t, truth, cls).slip_z2_mean)
+    assert r.slip_within_2sigma == pytest.approx(math.erf(2.0 * stated_over_true / math.sqrt(2.0)),
+                                                 abs=0.01)
+
+
+def test_the_share_truly_medium_of_confident_medium_probabilities() -> None:
+    """Of the moving samples published with P(medium+) >= 0.8 (six: 0.8, 0.9 twice, 1.0 and
+    two at rest left out), the share whose truth is medium or worse: 3 of 4; none: NaN."""
+    t = np.arange(8) * NS // 10
+    truth_cls = np.array([2, 3, 1, 2, 1, 2, 0, 0])
+    p = np.array([0.8, 0.9, 0.9, 1.0, 0.79, 0.1, 0.95, 0.99])
+    r = evaluate_slip(t, np.zeros(8), truth_cls, t, np.zeros(8), truth_cls, est_p_medium=p)
+    assert r.n_p_medium_confident == 4 and r.p_medium_precision == pytest.approx(0.75)
+    none = evaluate_slip(t, np.zeros(8), truth_cls, t, np.zeros(8), truth_cls,
+                         est_p_medium=np.zeros(8))
+    assert none.n_p_medium_confident == 0 and math.isnan(none.p_medium_precision)
 
 
 def test_match_nearest_tolerance() -> None:
@@ -281,3 +296,16 @@ def test_load_run_and_evaluate_round_trip(tmp_path) -> None:
     assert (tmp_path / 'rep' / 'confusion_matrix.png').exists()
     import json
     assert json.loads(out_json.read_text())['slip']['balanced_accuracy'] == 1.0
+
+
+def test_the_false_alarm_share_is_low_truth_read_medium_or_worse() -> None:
+    """``counts[est, truth]``: of 10 truth-low samples, 2 read medium and 1 extreme; at rest
+    and truth-medium samples do not count; without truth-low samples NaN."""
+    from slip_estimator.accuracy import false_alarm_share
+
+    counts = np.zeros((5, 5), dtype=int)
+    counts[1, 1], counts[2, 1], counts[4, 1] = 7, 2, 1
+    counts[3, 0], counts[2, 2] = 5, 9
+    assert false_alarm_share(counts) == pytest.approx(0.3)
+    counts[:, 1] = 0
+    assert math.isnan(false_alarm_share(counts))

@@ -14,7 +14,8 @@ from slip_estimator.core.frames import rpy_to_dcm
 from slip_estimator.core.history import Correction, ForwardSpeedHistory
 from slip_estimator.core.kalman import chi2_threshold
 from slip_estimator.core.measurements import ForwardSpeed
-from slip_estimator.core.outputs import slip_before_alignment, slip_estimate, unknown_slip
+from slip_estimator.core.outputs import (RESOLVED_P, slip_before_alignment, slip_estimate,
+                                         unknown_slip)
 from slip_estimator.core.params import (
     GROUPS,
     REMOVED_PARAMETERS,
@@ -26,6 +27,7 @@ from slip_estimator.core.params import (
 from slip_estimator.core.planet import EARTH, gravity_n
 from slip_estimator.core.aided_record import ANCHOR_S, AidedRecord
 from slip_estimator.core.rim_memory import MEMORY_S, RimMemory
+from slip_estimator.core.slip import p_beyond_medium_bound, p_medium_or_worse
 from slip_estimator.core.stop_clock import STOP_S, StopClock
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
@@ -499,6 +501,40 @@ def test_wheel_yaw_aid_lets_go_while_wheels_and_gyro_disagree_persistently():
     assert R[-1] == pytest.approx(R[5], rel=0.2)  # 4 s after they agree again
 
 
+def test_a_medium_reading_within_its_own_error_of_low_is_published_low_and_unresolved():
+    """s = 0.3 read with a 1-sigma of 0.01 is medium. s = 0.22 read with 0.1 is beyond 0.2 with
+    P = Phi(0.02 / 0.1) = 0.58 < RESOLVED_P: published low, unresolved, with its two-sided
+    P(medium+), unless the slip model holds a medium slip it resolves (0.3: Phi(1) = 0.84);
+    not a low hold, nor a medium one whose 1-sigma is too wide to place it (0.22 +- 1.0: the
+    end of a chain of changes on a consumer IMU). A start (rim 0.3 m/s, body 0.4: s = -0.25)
+    is medium while the rim is steady; unresolved when the rim moved by 0.1 m/s since the
+    last sample (within its timing the rim speed could be 0.4: no slip)."""
+    p, wheel = Params(), WheelSample(7, 1.0)
+    sure = slip_estimate(wheel, 0.7, 0.0, 1e-4, p, False, 1.0, held_slip=0.04)
+    assert sure.slip_class == 2 and sure.resolved and sure.p_medium_or_worse > 0.99
+    for held in (None, 0.04, 0.3):
+        est = slip_estimate(wheel, 0.78, 0.0, 0.1 ** 2, p, False, 1.0, held_slip=held)
+        assert est.p_medium_or_worse == pytest.approx(p_medium_or_worse(0.22, est.slip_ratio_std))
+        assert p_beyond_medium_bound(0.22, est.slip_ratio_std) < RESOLVED_P
+        assert (est.slip_class, est.resolved) == ((2, True) if held == 0.3 else (1, False))
+    wide = slip_estimate(wheel, 0.78, 0.0, 1.0, p, False, 1.0, held_slip=0.22)
+    assert wide.slip_class == 1 and not wide.resolved and wide.p_medium_or_worse > RESOLVED_P
+    start = WheelSample(7, 0.3)
+    assert slip_estimate(start, 0.4, 0.0, 1e-4, p, False, 1.0).slip_class == 2
+    late = slip_estimate(start, 0.4, 0.0, 1e-4, p, False, 1.0, rim_timing_var_mps2=0.1 ** 2)
+    assert late.slip_class == 1 and not late.resolved
+    slight = slip_estimate(start, 0.4, 0.0, 1e-4, p, False, 1.0, rim_timing_var_mps2=0.01 ** 2)
+    assert slight.slip_class == 2 and slight.resolved
+    assert slip_estimate(WheelSample(7, 0.0), 0.0, 0.0, 1e-4, p, True, 1.0).resolved
+
+
+def test_the_rim_timing_variance_is_the_rims_change_since_the_last_sample():
+    aid = WheelAid(Params())
+    assert aid.rim_timing_var_mps2(WheelSample(0, 0.2)) == 0.0  # no sample before
+    aid.stopping(WheelSample(0, 0.2))
+    assert aid.rim_timing_var_mps2(WheelSample(100_000_000, 0.3)) == pytest.approx(0.01)
+    assert aid.rim_timing_var_mps2(WheelSample(0, 0.3)) == 0.0  # not after the last one
+
 def test_wheels_that_just_stopped_hold_the_body_for_the_stop_time():
     """The rim speed falls below the moving threshold: for STOP_S the body is taken to stop
     with the wheels (an INS speed left from a held slip is not a slide), and so is the sample
@@ -590,3 +626,4 @@ def test_a_change_continues_from_the_aided_mean_before_its_onset() -> None:
     assert m.last_ns == onset
     early = rec.before(round(-1.0 * ns))  # before the first sample: the oldest one
     assert early.v_free_mps == 0.0 and early.t_ns == 0
+

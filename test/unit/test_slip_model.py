@@ -420,6 +420,11 @@ def test_the_chain_holds_a_measurement_as_baseline_false_alarm_or_new_slip():
     assert chain.held_speed_var_mps2(0.5, spread) == pytest.approx(2 * spread)
     chain.settle(0.5, 0.3, 0.5, spread, 0.05, False, True, True)  # run-ahead, unmeasured
     assert chain.assumed and chain.held_speed_var_mps2(0.5, spread) == pytest.approx(0.05 ** 2)
+    # Changes measured from the assumption add their spread to it (0.1 m/s each over 2.5 s).
+    chain.settle(0.7, 0.3, 0.5, 0.01, 0.05, False, False, False)
+    chain.settle(0.9, 0.7, 0.5, 0.01, 0.05, False, False, False)
+    assert chain.assumed and chain.chain_var > 0.015
+    assert chain.held_speed_var_mps2(0.5, 0.01) == pytest.approx(chain.chain_var)
 
 
 def test_a_measurement_on_another_slope_is_not_snapped_to_the_baseline():
