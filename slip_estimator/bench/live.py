@@ -53,6 +53,22 @@ def live_variants(args: argparse.Namespace) -> list[tuple[str, str | None]]:
     return [('this tree', None)] + ([(f'baseline {Path(base).name}', str(base))] if base else [])
 
 
+def save_params_for_tree(params: Any, path: Path, tree: str | None) -> None:
+    """Write ``params`` for the node or replay of ``tree``; for an earlier tree (``tree`` given)
+    the file allows parameters that tree does not know yet (added since), which it then
+    ignores with a logged error instead of refusing to start."""
+    import yaml
+
+    from slip_estimator.paramfile import save_params
+
+    save_params(params, path)
+    if tree:
+        doc = yaml.safe_load(path.read_text())
+        for section in doc.values():
+            section['ros__parameters']['allow_unknown_parameters'] = True
+        path.write_text(yaml.safe_dump(doc, sort_keys=False))
+
+
 def tree_env(env: dict[str, str], tree: str | None) -> dict[str, str]:
     """``env`` for a subprocess running the package of ``tree`` (None: this one).
     PYTHONSAFEPATH: ``python -m`` would otherwise put the working folder, maybe a checkout of
@@ -67,7 +83,6 @@ def _bench_live_once(args: argparse.Namespace, rate_imu_hz: float, tree: str | N
                      ) -> dict[str, Any]:
     """Node subprocess (from ``tree`` when given) + publisher/listener subprocess at
     ``rate_imu_hz``; CPU of the node from /proc."""
-    from slip_estimator.paramfile import save_params
     from slip_estimator.sim import default_scenario, simulate
     from slip_estimator.sim.bag import sim_params
 
@@ -78,7 +93,7 @@ def _bench_live_once(args: argparse.Namespace, rate_imu_hz: float, tree: str | N
         work = Path(tmp)
         cfg = default_scenario(args.seed)
         params = sim_params(simulate(cfg.replace(duration_s=10.0)))
-        save_params(params, work / 'params.yaml')
+        save_params_for_tree(params, work / 'params.yaml', tree)
         node_log = open(work / 'node.log', 'w')  # noqa: SIM115 -- closed below
         node = subprocess.Popen(
             [sys.executable, '-m', 'slip_estimator.ros.node', '--ros-args',

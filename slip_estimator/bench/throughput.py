@@ -173,22 +173,22 @@ def replay_processes(bags: list[tuple[str, Path, Any]], args: argparse.Namespace
 
     from slip_estimator.bagio import bag_duration_s
     from slip_estimator.bench.identical import compare_bags
-    from slip_estimator.bench.live import live_variants, tree_env
-    from slip_estimator.paramfile import save_params
+    from slip_estimator.bench.live import live_variants, save_params_for_tree, tree_env
 
     out = []
     for name, bag, params in bags:
-        save_params(params, work / f'{name}.yaml')
         best: dict[str, dict[str, Any]] = {}
         for k in range(max(1, args.replay_repeats)):
             for label, tree in live_variants(args):
+                params_file = work / f'{name}.{label.split()[0]}.yaml'
+                save_params_for_tree(params, params_file, tree)
                 env = tree_env(dict(os.environ), tree)
                 dest = work / f'{name}_process_{len(best)}_{k}_{label.split()[0]}'
                 cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
                 t0 = time.perf_counter()
                 proc = subprocess.run(
                     [sys.executable, '-m', 'slip_estimator.cli', 'replay', str(bag),
-                     '--params-file', str(work / f'{name}.yaml'), '--output', str(dest)],
+                     '--params-file', str(params_file), '--output', str(dest)],
                     env=env, capture_output=True, text=True, check=False)
                 wall = time.perf_counter() - t0
                 cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
