@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from slip_estimator.core.slip_model import SlipModel
+    from slip_estimator.core.slip_model.model import SlipModel
 
 CHANNELS = ('zupt', 'zaru', 'nhc_lateral', 'nhc_vertical', 'wheel', 'wheel_yaw')
 

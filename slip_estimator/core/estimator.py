@@ -23,15 +23,15 @@ from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint, Wheel
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, LocalEnu
-from slip_estimator.core.aid_decision import AidDecision
-from slip_estimator.core.slip_model import CHANGE_LOOKBACK_S
+from slip_estimator.core.slip_model.aid_decision import AidDecision
+from slip_estimator.core.slip_model.model import CHANGE_LOOKBACK_S
 from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor
 from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.types import (Health, ImuSample, OdometryEstimate, SlipEstimate,
                                        WheelSample, wheel_speeds)
 from slip_estimator.core.updater import Updater
-from slip_estimator.core.wheel_aid import WheelAid
+from slip_estimator.core.slip_model.wheel_aid import WheelAid
 from slip_estimator.core.wheel_odometry import WheelDeadReckoning
 
 _NS = 1_000_000_000

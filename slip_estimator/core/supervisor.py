@@ -25,7 +25,7 @@ from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.types import Health, WheelSample, imu_values_usable, wheel_speeds
 
 if TYPE_CHECKING:
-    from slip_estimator.core.slip_model import SlipModel
+    from slip_estimator.core.slip_model.model import SlipModel
 
 _NS = 1_000_000_000
 _EVENTS_HELD = 20

@@ -137,7 +137,7 @@ def body_side_section(rows: list[dict[str, Any]] | None,
          'test17run wheels are kept and the body is slowed inside windows (`effects.'
          'inject_body_slip`: the derivative of the speed deficit taken out of the real '
          'forward specific force, 1 s transitions; truth = RTK speed minus the deficit). '
-         'D is the shipped slip model (`core/slip_model.py`); "wheel side only" is D with the '
+         'D is the shipped slip model (`core/slip_model/`); "wheel side only" is D with the '
          'body-side step test off (`slip_change_sigma=20`), which is what the earlier hold '
          'mode could see; A is the paper. Cells: balanced accuracy (recall medium / high / '
          'extreme), significant-slip F1, forward-speed RMSE against the truth:'), '']

@@ -25,14 +25,14 @@ from slip_estimator.core.params import (
     renamed_in,
 )
 from slip_estimator.core.planet import EARTH, gravity_n
-from slip_estimator.core.aided_record import ANCHOR_S, AidedRecord
-from slip_estimator.core.rim_memory import MEMORY_S, RimMemory
+from slip_estimator.core.slip_model.aided_record import ANCHOR_S, AidedRecord
+from slip_estimator.core.slip_model.rim_memory import MEMORY_S, RimMemory
 from slip_estimator.core.slip import p_beyond_medium_bound, p_medium_or_worse
-from slip_estimator.core.stop_clock import STOP_S, StopClock
+from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
 from slip_estimator.core.types import WheelSample
-from slip_estimator.core.wheel_aid import WheelAid
+from slip_estimator.core.slip_model.wheel_aid import WheelAid
 
 LLH = np.array([math.radians(39.6), math.radians(-79.9), 310.0])
 P0 = np.diag([1e-6, 1e-6, 1e-4, 1e-4, 1e-4, 1e-4, 1e-16, 1e-16, 1e-2,

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from slip_estimator.core.aided_record import Anchor
-from slip_estimator.core.slip_measurement import SlipMeasurement
+from slip_estimator.core.slip_model.aided_record import Anchor
+from slip_estimator.core.slip_model.measurement import SlipMeasurement
 
 DT_S = 0.1
 MEASURE_S = 0.5

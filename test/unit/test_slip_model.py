@@ -16,8 +16,8 @@ import pytest
 
 from slip_estimator.core.params import Params
 from slip_estimator.core.slip import speed_ratio
-from slip_estimator.core.slip_model import CHANGE_LOOKBACK_S, Mode, SlipModel
-from slip_estimator.core.step_test import SCALES_S
+from slip_estimator.core.slip_model.model import CHANGE_LOOKBACK_S, Mode, SlipModel
+from slip_estimator.core.slip_model.step_test import SCALES_S
 
 DT_S = 0.1
 
@@ -198,7 +198,7 @@ def test_run_ahead_check_judges_the_slope_ahead():
     """Pitch starting to fall at 3 deg/s: level by the pitch alone, but the smoothed rate puts
     the slope 2 s ahead beyond -2 deg, so a run-ahead of 0.3 is possible; pitching up it is
     not; 0.6 never is."""
-    from slip_estimator.core.run_ahead import RunAheadCheck
+    from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
     check = RunAheadCheck()
     for k in range(30):  # 3 s at 10 Hz, tipping only in the last 0.2 s (to -0.6 deg)
         check.add(int(k * 1e8), math.radians(-0.3 * (k - 27)) if k > 27 else 0.0)
@@ -407,7 +407,7 @@ def test_the_body_side_resolution_is_the_imus_own_scatter_over_the_rim_speed(wal
 def test_the_chain_holds_a_measurement_as_baseline_false_alarm_or_new_slip():
     """Closed form at 0.5 m/s with a 2.5-s INS spread of 0.01 m/s: the change threshold is
     min(0.05, 2 x 0.01) = 0.02 m/s, i.e. 0.04 in slip."""
-    from slip_estimator.core.slip_chain import SlipChain
+    from slip_estimator.core.slip_model.chain import SlipChain
     chain = SlipChain(Params())
     spread = 1e-4
     def settle(measured, previous, from_rest=False):
@@ -433,7 +433,7 @@ def test_a_measurement_on_another_slope_is_not_snapped_to_the_baseline():
     so it is not that ground. The same reading at 3 degrees (terrain undulation), or at 5
     degrees with a tilt sigma of 2 degrees (a consumer IMU, whose pitch wanders that much on
     level ground), is."""
-    from slip_estimator.core.slip_chain import SlipChain
+    from slip_estimator.core.slip_model.chain import SlipChain
     deg = math.radians(1.0)
     def held(pitch_deg, pitch_std_deg=0.0):
         chain = SlipChain(Params())

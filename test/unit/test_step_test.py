@@ -2,7 +2,7 @@
 not, and the spread it learns is the walk's."""
 import numpy as np
 
-from slip_estimator.core.step_test import StepTest
+from slip_estimator.core.slip_model.step_test import StepTest
 
 _DT_NS = 100_000_000  # 10 Hz
 

@@ -14,7 +14,7 @@ body's forward speed ``v``. Three things make them disagree, and they differ in 
 
 So the detector looks at the free residual of the *uncorrected* INS (the filter's own velocity
 corrections removed, so the wheel aid cannot hide a change from it) with a multi-scale step
-test (:mod:`slip_estimator.core.step_test`): the change of its 0.5-s mean over 1 s and 2.5 s
+test (:mod:`.step_test`): the change of its 0.5-s mean over 1 s and 2.5 s
 against ``slip_change_sigma`` times the spread of that change, learned online, and never below
 ``slip_change_fraction`` of the rim speed. A slow common divergence stays under the threshold;
 a step beyond it is a slip change whichever side it shows on.
@@ -23,7 +23,7 @@ Modes (:class:`Mode`):
 
 * ``REST``: not moving. The ZUPT anchors the velocity; the next start is measured from it;
 * ``MEASURE``: after a start or a detected change the INS runs free (no wheel aid) until the
-  body has settled (:mod:`slip_estimator.core.slip_measurement`). A body-side change is
+  body has settled (:mod:`.measurement`). A body-side change is
   anchored at its alarm on velocity continuity (the held model's speed at the onset plus the
   INS speed change since) by an update of the aid's variance, which moves the velocity as far
   as the filter's own velocity variance lets it: 78 % of the way (median) on the real
@@ -33,7 +33,7 @@ Modes (:class:`Mode`):
   (``AidDecision.take_back_since_ns``), or the free INS measures the change short (patch
   entries read 30-40 % low). Not after a start in motion: there the aid is still levelling
   the INS (a 30-Hz consumer IMU lost 1-2.5 deg). The measured slip is then held as
-  :mod:`slip_estimator.core.slip_chain` decides (the ground's baseline, a false alarm, a
+  :mod:`.chain` decides (the ground's baseline, a false alarm, a
   run-ahead no slope explains);
 * ``TRACK``: the held slip turns the rim speed into a forward-speed aid ``g(s_hold) w`` that
   stops the INS drift without assuming zero slip, while the step test watches for the next
@@ -49,16 +49,17 @@ from __future__ import annotations
 import enum
 import math
 
-from slip_estimator.core.aid_decision import AidDecision
-from slip_estimator.core.aided_record import ANCHOR_S, AidedRecord, Anchor, ConsistencyNoise
+from slip_estimator.core.slip_model.aid_decision import AidDecision
+from slip_estimator.core.slip_model.aided_record import (ANCHOR_S, AidedRecord, Anchor,
+                                                         ConsistencyNoise)
 from slip_estimator.core.params import Params
-from slip_estimator.core.rim_memory import RimMemory
-from slip_estimator.core.run_ahead import RunAheadCheck
+from slip_estimator.core.slip_model.rim_memory import RimMemory
+from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
 from slip_estimator.core.slip import speed_ratio
-from slip_estimator.core.slip_chain import SlipChain, coarse_ins
-from slip_estimator.core.slip_measurement import SlipMeasurement
-from slip_estimator.core.step_test import SCALES_S, StepTest
-from slip_estimator.core.stop_clock import STOP_S, StopClock
+from slip_estimator.core.slip_model.chain import SlipChain, coarse_ins
+from slip_estimator.core.slip_model.measurement import SlipMeasurement
+from slip_estimator.core.slip_model.step_test import SCALES_S, StepTest
+from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
 
 _NS = 1_000_000_000
 _TURN_THRESHOLD_FACTOR = 1.5
@@ -176,7 +177,7 @@ class SlipModel:
     def _measure(self, t_ns: int, w: float, v: float, v_free: float, steady: bool,
                  turning: bool) -> AidDecision | None:
         """The INS runs free until the body has settled
-        (:class:`~slip_estimator.core.slip_measurement.SlipMeasurement`); then the measured
+        (:class:`~slip_estimator.core.slip_model.measurement.SlipMeasurement`); then the measured
         slip is held as the chain decides and the velocity is anchored on it."""
         p = self.params
         if turning or not steady:
@@ -218,7 +219,7 @@ class SlipModel:
     @property
     def aid_noise_var(self) -> float:
         """Measured wheel/INS consistency noise (the aid's innovation variance), m^2/s^2
-        (:class:`~slip_estimator.core.aided_record.ConsistencyNoise`)."""
+        (:class:`~slip_estimator.core.slip_model.aided_record.ConsistencyNoise`)."""
         return self._noise.var_mps2
 
     @property

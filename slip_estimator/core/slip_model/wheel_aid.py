@@ -1,11 +1,11 @@
 """The wheel aid: what one wheel sample's rim speed may tell the filter.
 
-``wheel_aid = 'hold'``: the slip model (:mod:`slip_estimator.core.slip_model`) decides per
+``wheel_aid = 'hold'``: the slip model (:mod:`slip_estimator.core.slip_model.model`) decides per
 wheel sample whether the rim speed aids the forward velocity as ``r w g(s_hold)``, re-anchors
 it after a slip change, or leaves the INS free while a new slip is measured. While the
 estimator recovers (after an in-motion start, an IMU gap or a divergence) the rim speed
 re-anchors the velocity with zero slip assumed. ``'off'``: never (the paper's method). The
-decisions are :class:`~slip_estimator.core.aid_decision.AidDecision`
+decisions are :class:`~slip_estimator.core.slip_model.aid_decision.AidDecision`
 values for the filter's :class:`~slip_estimator.core.measurements.ForwardSpeed` model.
 """
 from __future__ import annotations
@@ -16,8 +16,8 @@ import numpy as np
 
 from slip_estimator.core.history import HistoryPoint
 from slip_estimator.core.params import Params
-from slip_estimator.core.aid_decision import AidDecision
-from slip_estimator.core.slip_model import SlipModel
+from slip_estimator.core.slip_model.aid_decision import AidDecision
+from slip_estimator.core.slip_model.model import SlipModel
 from slip_estimator.core.types import SlipEstimate, WheelSample
 
 _RECOVERY_SLIP_STD = 0.1  # zero slip assumed while recovering: 10 % of the rim speed, 1-sigma

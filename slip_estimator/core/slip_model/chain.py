@@ -14,7 +14,7 @@ the next until a stop or a return to the ground measured after the last start:
   uncertainty: a consumer IMU's pitch wanders by 2 degrees on level ground);
 * **false alarm.** A measurement within the change threshold of the previous hold is that
   hold (the INS confirms it);
-* **run-ahead.** One that no slope explains (:mod:`slip_estimator.core.run_ahead`) is the INS:
+* **run-ahead.** One that no slope explains (:mod:`.run_ahead`) is the INS:
   back to the baseline;
 * **assumed.** After a start in motion nothing measured the ground: a slip the INS could not
   place is assumed (zero, the wheels' speed) and carries ``_ASSUMED_SLIP_STD``; an INS too

@@ -1,6 +1,6 @@
 """Multi-scale step test: a slip change is a step of the free residual, INS error a walk.
 
-The slip model (:mod:`slip_estimator.core.slip_model`) feeds it, per wheel sample, the free
+The slip model (:mod:`slip_estimator.core.slip_model.model`) feeds it, per wheel sample, the free
 residual ``rho`` (the filter's forward speed less the held model's, without the wheel aid's own
 corrections) and the along-track acceleration those corrections cause. It smooths ``rho`` over
 ``SMOOTH_S`` and compares the smoothed value with its value ``T`` ago for each scale ``T`` of

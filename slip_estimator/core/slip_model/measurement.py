@@ -6,7 +6,7 @@ settled, and the encoder speed, a count difference, lags the body: a measurement
 samples only, for ``slip_measure_s``, and goes on while the filter's speed still moves between
 the halves of its window (by more than twice the wheel/INS consistency noise, 2 cm/s at
 least), up to ``_TIMEOUT_FACTOR`` times that time. What it measured depends on what it started
-from (its :class:`~slip_estimator.core.aided_record.Anchor`):
+from (its :class:`~slip_estimator.core.slip_model.aided_record.Anchor`):
 
 * **nothing** (a start from rest, ZUPT-anchored, or a recovery): the median INS slip;
 * **a body-side alarm**: the velocity was re-anchored on continuity at the alarm and the INS
@@ -18,14 +18,14 @@ from (its :class:`~slip_estimator.core.aided_record.Anchor`):
   spread over that span is none (the body kept its speed), unless the rim's own change at the
   old slip is closer: a commanded rate the body followed.
 
-What the measured slip is then held as is :mod:`slip_estimator.core.slip_chain`'s decision.
+What the measured slip is then held as is :mod:`slip_estimator.core.slip_model.chain`'s decision.
 Only the standard library is used.
 """
 from __future__ import annotations
 
 import math
 
-from slip_estimator.core.aided_record import Anchor
+from slip_estimator.core.slip_model.aided_record import Anchor
 from slip_estimator.core.slip import slip_ratio, speed_ratio
 
 _NS = 1_000_000_000

@@ -1,0 +1,43 @@
+"""The slip model: which part of a wheel/IMU forward-speed discrepancy is slip, and which is
+INS error, and what the rim speed may therefore tell the filter (standard library only).
+
+What it assumes
+---------------
+* **Slip is piecewise constant.** A rover's motor controllers hold the commanded wheel rate:
+  in soft ground the wheels keep turning and the body slows, downhill the body runs ahead, and
+  a terrain change can spin the wheels up at an unchanged body speed. Either way the free
+  residual ``v_ins - g(s_hold) r omega`` steps by ``r omega * delta_s`` within 0.5-3 s and
+  stays there.
+* **INS error is a slow random walk** (vibration, tilt wander through the gyro, biases), whose
+  spread the step test learns online; **wheel noise is white**, and the rim speed's age within
+  one encoder sample is part of its error at starts and stops.
+* **Absolute slip is anchored at rest** (ZUPT): each change is measured from the held slip
+  before it, so errors chain until the next stop or a return to the ground's baseline.
+* A run-ahead needs a downhill pull; the same ground on another slope slips differently.
+
+Where it fails (measured; docs/limits.md, docs/status.md, docs/sim-vs-real.md)
+------------------------------------------------------------------------------
+* A body-side change is the IMU's to see: on the real test17run IMU an oracle with perfect
+  timing keeps the class of injected body-side levels in only 59-83 % of onsets.
+* A slip changing over tens of seconds is absorbed as INS drift; a change below
+  ``slip_change_fraction`` of the rim speed is not seen; a wheel-radius error is a constant slip.
+* False alarms (medium or worse where the ground does not slip, share of moving time): real
+  test17run 0.2 %, s5t1 3.0 % as recorded; on a vibrating 30-Hz consumer IMU a body-side alarm
+  can latch a wrong extreme slip (tens of percent of moving time on the simulated
+  ``skid_steer_30hz``), where the published ``p_medium_or_worse`` is not calibrated.
+
+Its parts, in the order a wheel sample meets them
+-------------------------------------------------
+* :mod:`.wheel_aid` -- what a wheel sample may tell the filter (the model, a recovery
+  re-anchor, wheels that just stopped);
+* :mod:`.model` -- the model itself (modes REST / MEASURE / TRACK) and its decisions;
+* :mod:`.rim_memory` -- the rim speeds it remembers (steady, how far they moved, when);
+* :mod:`.stop_clock` -- when still wheels are a stop;
+* :mod:`.aided_record` -- the recent aided samples: a change's continuity anchor and the
+  wheel/INS consistency noise;
+* :mod:`.step_test` -- the multi-scale step test on the free residual (body-side changes);
+* :mod:`.measurement` -- one slip measurement while the INS runs free;
+* :mod:`.chain` -- what a measured slip is held as (baseline, false alarm, chain spread);
+* :mod:`.run_ahead` -- when a body can run ahead of its wheels;
+* :mod:`.aid_decision` -- :class:`~.aid_decision.AidDecision`, what the filter is told.
+"""
