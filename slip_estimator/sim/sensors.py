@@ -54,6 +54,19 @@ def _vibration_speed(tr: _Truth, i_imu: np.ndarray) -> np.ndarray:
     return np.maximum(np.abs(tr.v_mps[i_imu]), np.abs(tr.rim_mps[i_imu]).mean(axis=1))
 
 
+def _add_sinusoid(rng: np.random.Generator, f_meas: np.ndarray, w_meas: np.ndarray,
+                  phase_rad: np.ndarray, amp_accel_mps2: np.ndarray,
+                  amp_gyro_rps: np.ndarray) -> None:
+    """Add one vibration line, ``amp * sin(phase + random phase)`` along a random unit
+    direction (its own for the accelerometer and the gyro), to the measured arrays in place."""
+    ph_a, ph_g = rng.uniform(0.0, 2.0 * math.pi, 2)
+    dir_a, dir_g = rng.normal(0.0, 1.0, (2, 3))
+    dir_a /= np.linalg.norm(dir_a)
+    dir_g /= np.linalg.norm(dir_g)
+    f_meas += (amp_accel_mps2 * np.sin(phase_rad + ph_a))[:, None] * dir_a
+    w_meas += (amp_gyro_rps * np.sin(phase_rad + ph_g))[:, None] * dir_g
+
+
 def _add_vibration(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray, f_meas: np.ndarray,
                    w_meas: np.ndarray, rng_vib: np.random.Generator
                    ) -> tuple[np.ndarray, np.ndarray]:
@@ -66,12 +79,8 @@ def _add_vibration(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray, f_meas: n
                             tr.grid.h_s)[i_imu]
     for mult, amp_a, amp_g in zip(vib.harmonic_multipliers, vib.accel_harmonic_mps2_per_mps,
                                   vib.gyro_harmonic_rps_per_mps):
-        ph_a, ph_g = rng_vib.uniform(0.0, 2.0 * math.pi, 2)
-        dir_a, dir_g = rng_vib.normal(0.0, 1.0, (2, 3))
-        dir_a /= np.linalg.norm(dir_a)
-        dir_g /= np.linalg.norm(dir_g)
-        f_meas += (amp_a * vib_speed * np.sin(mult * wheel_phase + ph_a))[:, None] * dir_a
-        w_meas += (amp_g * vib_speed * np.sin(mult * wheel_phase + ph_g))[:, None] * dir_g
+        _add_sinusoid(rng_vib, f_meas, w_meas, mult * wheel_phase, amp_a * vib_speed,
+                      amp_g * vib_speed)
     n = len(i_imu)
     f_meas += rng_vib.normal(0.0, 1.0, (n, 3)) \
         * (vib.accel_broadband_mps2_per_mps * vib_speed)[:, None]
@@ -127,12 +136,8 @@ def _real_imu_mechanisms(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray,
     t = tr.grid.t_s[i_imu]
     for f_hz, amp_a, amp_g in zip(vib.resonance_hz, vib.accel_resonance_mps2_per_mps,
                                   vib.gyro_resonance_rps_per_mps):
-        ph_a, ph_g = rng_res.uniform(0.0, 2.0 * math.pi, 2)
-        dir_a, dir_g = rng_res.normal(0.0, 1.0, (2, 3))
-        dir_a /= np.linalg.norm(dir_a)
-        dir_g /= np.linalg.norm(dir_g)
-        f_meas += (amp_a * speed * np.sin(2.0 * math.pi * f_hz * t + ph_a))[:, None] * dir_a
-        w_meas += (amp_g * speed * np.sin(2.0 * math.pi * f_hz * t + ph_g))[:, None] * dir_g
+        _add_sinusoid(rng_res, f_meas, w_meas, 2.0 * math.pi * f_hz * t, amp_a * speed,
+                      amp_g * speed)
 
 
 def _wheel_encoders(cfg: ScenarioConfig, rim: np.ndarray, i_wheel: np.ndarray, h: float,
