@@ -14,7 +14,8 @@ from slip_estimator.core.params import ParameterError, Params, renamed_in
 NODE_NAME = 'slip_estimator'
 
 
-NODE_ONLY_PARAMETERS = {'allow_unknown_parameters': False, 'use_sim_time': False}
+NODE_ONLY_PARAMETERS = {'allow_unknown_parameters': False, 'use_sim_time': False,
+                        'input_batch_period_s': 0.01}
 """Parameters of the node itself (not of the estimator): read by the node, ignored by replay."""
 
 

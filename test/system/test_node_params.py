@@ -171,3 +171,10 @@ def test_stuck_teardown_exits_with_the_stacks():
     proc = subprocess.run([sys.executable, '-c', normal], capture_output=True, text=True,
                           timeout=60)
     assert proc.returncode == 0 and proc.stdout.strip() == 'alive', proc.stderr
+
+
+@pytest.mark.parametrize('value', ['0.5', 'fast'])
+def test_invalid_input_batch_period_refuses_to_start(value):
+    """``input_batch_period_s`` out of [0, 0.1] s, or not a number: one line, exit 2."""
+    rc, out = run_briefly(['-p', f'input_batch_period_s:={value}'], seconds=60.0)
+    assert rc == 2 and 'input_batch_period_s' in out and 'from 0 to 0.1' in out, out
