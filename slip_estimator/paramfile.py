@@ -9,7 +9,13 @@ from typing import Any
 
 import yaml
 
-from slip_estimator.core.params import ParameterError, Params, renamed_in
+from slip_estimator.core.params import (
+    REMOVED_PARAMETERS,
+    RENAMED_PARAMETERS,
+    ParameterError,
+    Params,
+    renamed_in,
+)
 
 NODE_NAME = 'slip_estimator'
 
@@ -129,3 +135,45 @@ def render_default_config() -> str:
         lines.append(f'    # {describe(f.name)}')
         lines.append(f'    {f.name}: {_yaml_value(getattr(defaults, f.name))}')
     return '\n'.join(lines) + '\n'
+
+
+_DEFAULTS = Params()
+
+
+def coerce_param_value(name: str, value: Any) -> Any:
+    """Give a ROS parameter value the Python type of the Params field (ints to floats where
+    the default is a float, arrays to lists); anything else is left for Params to reject."""
+    default = getattr(_DEFAULTS, name)
+    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(default, list) and not isinstance(value, str):
+        try:
+            items = list(value)
+        except TypeError:
+            return value
+        if default and isinstance(default[0], float):
+            return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                    for v in items]
+        return items
+    return value
+
+
+PARAMETER_NAMES = tuple(f.name for f in dataclasses.fields(Params))
+"""Every estimator parameter's name (the node declares each one)."""
+_ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+"""Parameters rclpy declares itself (plus ``qos_overrides.*``)."""
+
+
+def params_files(argv: list[str]) -> list[str]:
+    """The ``--params-file`` paths among the ROS arguments of ``argv``."""
+    return [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == '--params-file']
+
+
+def unknown_parameters(names: Any) -> list[str]:
+    """Names set for the node (params files, ``-p``) that are not parameters of it (removed
+    and renamed ones, :data:`REMOVED_PARAMETERS`, :data:`RENAMED_PARAMETERS`, are not unknown:
+    files that still set them load)."""
+    return sorted(n for n in names if n not in PARAMETER_NAMES and n not in NODE_ONLY_PARAMETERS
+                  and n not in REMOVED_PARAMETERS and n not in RENAMED_PARAMETERS
+                  and n not in _ROS_OWN_PARAMETERS
+                  and not n.startswith('qos_overrides.'))

@@ -73,8 +73,6 @@ status 1 instead of hanging until launch escalates to SIGKILL.
 """
 from __future__ import annotations
 
-import dataclasses
-import faulthandler
 import sys
 import time
 from typing import Any
@@ -84,7 +82,7 @@ import rclpy
 from diagnostic_msgs.msg import KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import (
@@ -96,15 +94,23 @@ from rclpy.qos import (
 from std_srvs.srv import Trigger
 
 from slip_estimator.core.params import (
-    REMOVED_PARAMETERS,
     RENAMED_PARAMETERS,
     ParameterError,
     Params,
     describe,
     renamed_in,
 )
-from slip_estimator.paramfile import NODE_ONLY_PARAMETERS, node_sections, read_yaml
+from slip_estimator.paramfile import (
+    NODE_ONLY_PARAMETERS,
+    PARAMETER_NAMES,
+    coerce_param_value,
+    node_sections,
+    params_files,
+    read_yaml,
+    unknown_parameters,
+)
 from slip_estimator.ros.cdr_out import serialize
+from slip_estimator.ros.spin import bounded_teardown, spin
 from slip_estimator.ros.adapter import (
     OUTPUT_TYPES,
     TOPIC_DIAGNOSTICS,
@@ -140,44 +146,8 @@ def output_qos(depth: int) -> QoSProfile:
                       durability=DurabilityPolicy.VOLATILE)
 
 
-def coerce_param_value(name: str, value: Any) -> Any:
-    """Give a ROS parameter value the Python type of the Params field (ints to floats where
-    the default is a float, arrays to lists); anything else is left for Params to reject."""
-    default = getattr(_DEFAULTS, name)
-    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
-        return float(value)
-    if isinstance(default, list) and not isinstance(value, str):
-        try:
-            items = list(value)
-        except TypeError:
-            return value
-        if default and isinstance(default[0], float):
-            return [float(v) if isinstance(v, int) and not isinstance(v, bool) else v
-                    for v in items]
-        return items
-    return value
-
-
 _DEFAULTS = Params()
-_FIELDS = tuple(f.name for f in dataclasses.fields(Params))
 ALLOW_UNKNOWN = 'allow_unknown_parameters'
-_ROS_OWN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
-"""Parameters rclpy declares itself (plus ``qos_overrides.*``)."""
-
-
-def params_files(argv: list[str]) -> list[str]:
-    """The ``--params-file`` paths among the ROS arguments of ``argv``."""
-    return [argv[i + 1] for i, a in enumerate(argv[:-1]) if a == '--params-file']
-
-
-def unknown_parameters(names: Any) -> list[str]:
-    """Names set for the node (params files, ``-p``) that are not parameters of it (removed
-    and renamed ones, :data:`REMOVED_PARAMETERS`, :data:`RENAMED_PARAMETERS`, are not unknown:
-    files that still set them load)."""
-    return sorted(n for n in names if n not in _FIELDS and n not in NODE_ONLY_PARAMETERS
-                  and n not in REMOVED_PARAMETERS and n not in RENAMED_PARAMETERS
-                  and n not in _ROS_OWN_PARAMETERS
-                  and not n.startswith('qos_overrides.'))
 
 
 class SlipEstimatorNode(Node):
@@ -191,12 +161,12 @@ class SlipEstimatorNode(Node):
         super().__init__(node_name, **kwargs)
         self._check_parameter_sources(param_files or [])
         defaults = self._defaults_with_old_names()
-        for name in _FIELDS:
+        for name in PARAMETER_NAMES:
             self.declare_parameter(
                 name, defaults[name],
                 ParameterDescriptor(description=describe(name), dynamic_typing=True))
         params = Params.from_dict({name: coerce_param_value(
-            name, self.get_parameter(name).value) for name in _FIELDS})
+            name, self.get_parameter(name).value) for name in PARAMETER_NAMES})
         self.adapter = SlipEstimatorAdapter(params)
         self.get_logger().info('effective parameters: ' + ', '.join(
             f'{k}={v!r}' for k, v in params.to_dict().items()))
@@ -343,7 +313,7 @@ class SlipEstimatorNode(Node):
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         ours = {p.name: coerce_param_value(p.name, p.value) for p in parameters
-                if p.name in _FIELDS}
+                if p.name in PARAMETER_NAMES}
         if not ours:
             return SetParametersResult(successful=True)
         current = self.adapter.pending_params or self.adapter.params
@@ -411,50 +381,6 @@ def main(args: list[str] | None = None) -> int:
     finally:
         bounded_teardown(node)
     return 0
-
-
-SPIN_ONCE_TIMEOUT_S = 0.5
-"""Longest wait of one ``spin_once`` (the loop then checks that rclpy is still running)."""
-
-
-def spin(node: SlipEstimatorNode) -> None:
-    """Spin ``node`` until rclpy shuts down: the events executor in a ``spin_once`` loop
-    (see Receiving), or the single-threaded executor where there is none; each round handles
-    every input message that is ready, then sleeps ``node.input_batch_period_s``."""
-    try:
-        from rclpy.experimental import EventsExecutor
-        executor = EventsExecutor(context=node.context)
-    except (ImportError, AttributeError):
-        executor = SingleThreadedExecutor(context=node.context)
-    executor.add_node(node)
-    try:
-        while node.context.ok():
-            executor.spin_once(timeout_sec=SPIN_ONCE_TIMEOUT_S)  # the first (waits for it)
-            handled = -1
-            while handled != node.input_callbacks:  # the rest, until none was ready
-                handled = node.input_callbacks
-                executor.spin_once(timeout_sec=0.0)
-            if node.input_batch_period_s:
-                time.sleep(node.input_batch_period_s)
-    finally:
-        executor.shutdown(timeout_sec=1.0)
-
-
-TEARDOWN_TIMEOUT_S = 4.0
-"""Seconds the DDS teardown may take before the process exits anyway (status 1, stacks on
-stderr); a normal teardown takes well under 1 s, launch escalates SIGINT to SIGTERM after 5 s."""
-
-
-def bounded_teardown(node: Node | None, timeout_s: float = TEARDOWN_TIMEOUT_S) -> None:
-    """Destroy ``node`` and shut rclpy down, or exit the process with status 1 after
-    ``timeout_s`` if that hangs (see the module's Shutdown section)."""
-    faulthandler.dump_traceback_later(timeout_s, exit=True)
-    try:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    finally:
-        faulthandler.cancel_dump_traceback_later()
 
 
 if __name__ == '__main__':

@@ -66,7 +66,7 @@ def test_misspelled_parameter_refused_unless_allowed(tmp_path):
 def test_removed_parameter_does_not_refuse_the_start(tmp_path):
     """A params file written before a parameter's removal starts the node, as it loads in
     replay (Params.from_dict); a misspelled name in it is still refused."""
-    from slip_estimator.ros.node import unknown_parameters
+    from slip_estimator.paramfile import unknown_parameters
 
     assert unknown_parameters(['max_wheel_latency_s', 'wheel_radius']) == []
     assert unknown_parameters(['max_wheel_latency', 'wheel_radius']) == ['max_wheel_latency']
@@ -79,7 +79,7 @@ def test_removed_parameter_does_not_refuse_the_start(tmp_path):
 def test_renamed_parameter_applies_under_its_old_name_with_a_warning(tmp_path):
     """A params file that sets a parameter under its name before it carried its unit starts the
     node with that value, and one warning names the new name."""
-    from slip_estimator.ros.node import unknown_parameters
+    from slip_estimator.paramfile import unknown_parameters
 
     assert unknown_parameters(['wheel_aid_std', 'wheel_aid_stdd']) == ['wheel_aid_stdd']
     f = tmp_path / 'p.yaml'
@@ -153,7 +153,7 @@ def test_reset_service_applies_pending_change(ros_context, tmp_path):
 def test_stuck_teardown_exits_with_the_stacks():
     """A DDS teardown that never returns (Fast DDS's deadlock, here a loop holding the GIL)
     ends the process with status 1 and every thread's stack on stderr; a normal one returns."""
-    stuck = ('from slip_estimator.ros.node import bounded_teardown\n'
+    stuck = ('from slip_estimator.ros.spin import bounded_teardown\n'
              'class Stuck:\n'
              '    def destroy_node(self):\n'
              '        while True:\n'
@@ -164,7 +164,7 @@ def test_stuck_teardown_exits_with_the_stacks():
     assert proc.returncode == 1 and 'Timeout' in proc.stderr, proc.stderr
     assert 'in destroy_node' in proc.stderr and 'in bounded_teardown' in proc.stderr
     normal = ('import time\n'
-              'from slip_estimator.ros.node import bounded_teardown\n'
+              'from slip_estimator.ros.spin import bounded_teardown\n'
               'bounded_teardown(None, timeout_s=0.2)\n'
               'time.sleep(0.6)\n'  # the watchdog was cancelled: still alive past it
               'print("alive")\n')
