@@ -32,7 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from slip_estimator.core.types import SLIP_CLASS_NAMES
+from slip_estimator.core.types import SLIP_CLASS_NAMES, WheelSample
+from slip_estimator.core.wheel_odometry import WheelDeadReckoning
 from slip_estimator.metrics import (
     SlipResult,
     SpeedResult,
@@ -104,10 +105,14 @@ class RunEvaluation:
     gnss_truth: GnssTruth | None = None
     truth_p_m: np.ndarray | None = None
     truth_stamp_ns: np.ndarray | None = None
+    wheels_gyro: TrajectoryResult | None = None
+    """The same trajectory figures for wheels + gyro dead reckoning (:func:`wheels_gyro_track`),
+    the baseline the fused odometry must not be worse than where the wheels are right."""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary."""
         return {
+            'wheels_gyro': self.wheels_gyro.to_dict() if self.wheels_gyro else None,
             'truth_source': self.truth_source, 'valid': dict(self.valid),
             'notes': list(self.notes),
             'gnss_projection': self.gnss_truth.projection if self.gnss_truth else None,
@@ -139,6 +144,30 @@ def _estimated_x_axis(run: RunData) -> np.ndarray | None:
     return x_axis / np.linalg.norm(x_axis, axis=1, keepdims=True)
 
 
+def wheels_gyro_track(run: RunData) -> tuple[np.ndarray, np.ndarray] | None:
+    """Wheels + gyro dead reckoning: the published rim speed of every slip sample integrated
+    along the estimated heading (the gyro's, integrated and bias-corrected by the filter),
+    from the estimated position at the first sample; (stamps ns, (N, 3) odom ENU m), or None
+    without two odometry samples. Only the forward speed differs from the fused odometry."""
+    if run.est_odom_stamp_ns is None or len(run.est_odom_stamp_ns) < 2 \
+            or len(run.est_slip_stamp_ns) < 2:
+        return None
+    to, tw = run.est_odom_stamp_ns, run.est_slip_stamp_ns
+    inside = (tw >= to[0]) & (tw <= to[-1])
+    tw, rim = tw[inside], np.nan_to_num(run.est_wheel_speed_mps[inside])
+    if len(tw) < 2:
+        return None
+    rel = lambda t: (t - to[0]) * 1e-9  # noqa: E731
+    yaw = np.interp(rel(tw), rel(to), np.unwrap(quat_wxyz_to_yaw(run.est_odom_q_wxyz)))
+    p0 = [np.interp(rel(tw[0]), rel(to), run.est_odom_p_m[:, k]) for k in range(3)]
+    dr = WheelDeadReckoning(float(yaw[0]))
+    p = np.empty((len(tw), 3))
+    for k, (t, v, y) in enumerate(zip(tw.tolist(), rim.tolist(), yaw.tolist())):
+        dr.add(WheelSample(t, v), 1.0, y)
+        p[k] = (p0[0] + dr.x_m, p0[1] + dr.y_m, p0[2])
+    return tw, p
+
+
 def evaluate_run(run: RunData, llh0: np.ndarray | None = None,
                  moving_threshold_mps: float = 0.02, tol_s: float = 0.05,
                  gnss_window_s: float = 1.0, wheel_time_offset_s: float = 0.0,
@@ -153,7 +182,7 @@ def evaluate_run(run: RunData, llh0: np.ndarray | None = None,
 
     notes: list[str] = []
     gnss_truth = None
-    slip = speed = traj = None
+    slip = speed = traj = wheels_gyro = None
     truth_p = truth_t = None
     if run.truth_slip_stamp_ns is not None and len(run.truth_slip_stamp_ns):
         source = truth_source or 'simulation'
@@ -169,6 +198,10 @@ def evaluate_run(run: RunData, llh0: np.ndarray | None = None,
                     run.est_odom_stamp_ns, run.est_odom_p_m, truth_t, truth_p,
                     quat_wxyz_to_yaw(run.est_odom_q_wxyz), quat_wxyz_to_yaw(
                         run.truth_odom_q_wxyz), 'odometry', align_origin=False)
+                wg = wheels_gyro_track(run)
+                if wg is not None:
+                    wheels_gyro = evaluate_trajectory(*wg, truth_t, truth_p,
+                                                      align_origin=False)
         valid = {'slip': True, 'speed': speed is not None, 'trajectory': traj is not None,
                  'heading': traj is not None}
     elif run.gnss_stamp_ns is not None and len(run.gnss_stamp_ns) > 3:
@@ -203,6 +236,10 @@ def evaluate_run(run: RunData, llh0: np.ndarray | None = None,
                 run.est_odom_stamp_ns, run.est_odom_p_m, truth_t, truth_p,
                 quat_wxyz_to_yaw(run.est_odom_q_wxyz), course, 'gnss_course',
                 align_origin=True, distance_smooth_s=1.0 if rtk else 5.0)
+            wg = wheels_gyro_track(run)
+            if wg is not None:
+                wheels_gyro = evaluate_trajectory(*wg, truth_t, truth_p, align_origin=True,
+                                                  distance_smooth_s=1.0 if rtk else 5.0)
         rtk = source == 'gnss_rtk'
         valid = {'slip': rtk, 'speed': rtk, 'trajectory': traj is not None,
                  'heading': rtk and traj is not None}
@@ -215,7 +252,7 @@ def evaluate_run(run: RunData, llh0: np.ndarray | None = None,
         raise ValueError('no truth in the run: neither /truth/slip nor /gnss/fix')
     valid = follow_data(valid, notes, slip, speed)
     return RunEvaluation(source, slip, speed, traj, valid, tuple(notes), gnss_truth,
-                         truth_p, truth_t)
+                         truth_p, truth_t, wheels_gyro)
 
 
 SMALL_CLASS_SAMPLES = 30

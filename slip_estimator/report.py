@@ -195,6 +195,10 @@ def summary_text(ev: RunEvaluation) -> str:
                      f'drift {_fmt(tr.drift_percent, " %", 2)}')
         lines.append(f'heading error RMS {_fmt(tr.heading_rms_deg, " deg", 2)}, final '
                      f'{_fmt(tr.heading_final_deg, " deg", 2)} (truth: {tr.heading_truth})')
+    if ev.wheels_gyro is not None:
+        wg = ev.wheels_gyro
+        lines.append(f'wheels + gyro dead reckoning: position error final '
+                     f'{_fmt(wg.final_error_m, " m")}, RMS {_fmt(wg.rms_error_m, " m")}')
     return '\n'.join(lines)
 
 
