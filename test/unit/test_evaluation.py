@@ -309,3 +309,22 @@ def test_the_false_alarm_share_is_low_truth_read_medium_or_worse() -> None:
     assert false_alarm_share(counts) == pytest.approx(0.3)
     counts[:, 1] = 0
     assert math.isnan(false_alarm_share(counts))
+
+
+def test_wheels_gyro_track_integrates_the_rim_speed_along_the_estimated_heading() -> None:
+    """A quarter circle at 1 m/s turning pi/20 rad/s (radius 20/pi m) from (1, 2): the
+    baseline ends at (1 + R, 2 + R) whatever positions the fused odometry published."""
+    from slip_estimator.evaluation import RunData, wheels_gyro_track
+
+    t_s = np.arange(0.0, 10.0 + 1e-9, 0.01)
+    t_ns = (t_s * 1e9).astype(np.int64)
+    yaw = np.pi / 20.0 * t_s
+    q = np.column_stack([np.cos(yaw / 2), 0 * t_s, 0 * t_s, np.sin(yaw / 2)])
+    p_odom = np.tile([1.0, 2.0, 0.0], (len(t_s), 1)) + 50.0 * (t_s > 0)[:, None]
+    nan = np.full(len(t_s), np.nan)
+    run = RunData(t_ns, nan, nan, np.ones(len(t_s), int), nan, np.ones(len(t_s)), t_ns,
+                  p_odom, q)
+    stamps, p = wheels_gyro_track(run)
+    radius = 20.0 / np.pi
+    assert stamps[-1] == t_ns[-1]
+    assert p[-1] == pytest.approx([1.0 + radius, 2.0 + radius, 0.0], abs=1e-3)
