@@ -15,6 +15,7 @@ import numpy as np
 
 from slip_estimator.core.frames import rpy_to_dcm
 from slip_estimator.sim.scenario import ScenarioConfig
+from slip_estimator.sim.kinematics import dcm_to_quat_wxyz
 from slip_estimator.sim.sensors import (
     _add_vibration,
     _gnss_llh,
@@ -27,7 +28,6 @@ from slip_estimator.sim.sensors import (
 from slip_estimator.sim.truth import (  # noqa: F401 (slip maths re-exported from here)
     MOVING_SPEED_THRESHOLD_MPS,
     Terrain,
-    _dcm_to_quat_wxyz,
     _truth,
     slip_class,
     slip_ratio,
@@ -144,7 +144,7 @@ def simulate(config: ScenarioConfig) -> SimResult:
     v_imu = tr.v_o[i_imu]
     return SimResult(
         config=cfg, imu_t_s=grid.t_s[i_imu], p_ob_o=tr.p_o[i_imu],
-        q_ob_wxyz=_dcm_to_quat_wxyz(C_imu), C_base_o=C_imu, v_ob_o=v_imu,
+        q_ob_wxyz=dcm_to_quat_wxyz(C_imu), C_base_o=C_imu, v_ob_o=v_imu,
         v_ob_b=np.einsum('nji,nj->ni', C_imu, v_imu), omega_eb_b=tr.omega_eb_b[i_imu],
         speed_mps=tr.v_mps[i_imu],
         f_ib_imu_true=f_true, omega_ib_imu_true=w_true, f_ib_imu=f_meas, omega_ib_imu=w_meas,

@@ -18,7 +18,8 @@ import numpy as np
 
 from slip_estimator.core.planet import PLANETS, radii_of_curvature
 from slip_estimator.sim.scenario import WHEEL_IS_LEFT, ScenarioConfig
-from slip_estimator.sim.truth import _cumtrapz, _Truth, slip_class, slip_ratio
+from slip_estimator.sim.kinematics import cumtrapz
+from slip_estimator.sim.truth import _Truth, slip_class, slip_ratio
 
 
 def _imu_errors(cfg: ScenarioConfig, f_true: np.ndarray, w_true: np.ndarray,
@@ -75,7 +76,7 @@ def _add_vibration(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray, f_meas: n
     vib = cfg.imu.vibration
     rim = tr.rim_mps
     vib_speed = _vibration_speed(tr, i_imu)
-    wheel_phase = _cumtrapz(np.abs(rim).mean(axis=1) / cfg.rover.wheel_radius_m,
+    wheel_phase = cumtrapz(np.abs(rim).mean(axis=1) / cfg.rover.wheel_radius_m,
                             tr.grid.h_s)[i_imu]
     for mult, amp_a, amp_g in zip(vib.harmonic_multipliers, vib.accel_harmonic_mps2_per_mps,
                                   vib.gyro_harmonic_rps_per_mps):
@@ -146,7 +147,7 @@ def _wheel_encoders(cfg: ScenarioConfig, rim: np.ndarray, i_wheel: np.ndarray, h
     """Cumulative encoder counts of rim travel (random initial phase), joint angle (rad) from
     the counts and joint rate (rad/s) from count differences over the wheel period."""
     rover = cfg.rover
-    dist = _cumtrapz(rim, h)
+    dist = cumtrapz(rim, h)
     dist = dist - dist[1]
     ppm = rover.encoder_pulses_per_m
     phase0 = rng_enc.uniform(0.0, 1.0, 4)

@@ -38,6 +38,7 @@ import numpy as np
 from slip_estimator.core.frames import C_ENU_NED, heading_to_yaw_enu
 from slip_estimator.core.planet import PLANETS, earth_rate_n, gravity_n
 from slip_estimator.core.slip import slip_class_array, slip_ratio_array
+from slip_estimator.sim.kinematics import attitude_dcm, central_diff, cumtrapz, vee_rel
 from slip_estimator.sim.scenario import WHEEL_IS_LEFT, ScenarioConfig
 
 MOVING_SPEED_THRESHOLD_MPS = 0.02
@@ -123,79 +124,6 @@ class Terrain:
         return z - self.z0_m, n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
-def _cumtrapz(y: np.ndarray, dt: float) -> np.ndarray:
-    out = np.zeros_like(y)
-    out[1:] = np.cumsum(0.5 * (y[1:] + y[:-1]) * dt, axis=0)
-    return out
-
-
-def _attitude(psi: np.ndarray, pitch: np.ndarray, roll: np.ndarray) -> np.ndarray:
-    """Vectorised ``Rz(psi) Ry(pitch) Rx(roll)`` (frames.rpy_to_dcm), shape (N, 3, 3)."""
-    cy, sy = np.cos(psi), np.sin(psi)
-    cp, sp = np.cos(pitch), np.sin(pitch)
-    cr, sr = np.cos(roll), np.sin(roll)
-    C = np.empty((len(psi), 3, 3))
-    C[:, 0, 0] = cy * cp
-    C[:, 0, 1] = cy * sp * sr - sy * cr
-    C[:, 0, 2] = cy * sp * cr + sy * sr
-    C[:, 1, 0] = sy * cp
-    C[:, 1, 1] = sy * sp * sr + cy * cr
-    C[:, 1, 2] = sy * sp * cr - cy * sr
-    C[:, 2, 0] = -sp
-    C[:, 2, 1] = cp * sr
-    C[:, 2, 2] = cp * cr
-    return C
-
-
-def _dcm_to_quat_wxyz(C: np.ndarray) -> np.ndarray:
-    """Vectorised rotation matrix -> unit quaternion (w, x, y, z), w >= 0."""
-    tr = np.trace(C, axis1=1, axis2=2)
-    # Stable for all rotations: pick the largest of the four squared components.
-    q2 = np.stack([1.0 + tr, 1.0 + 2.0 * C[:, 0, 0] - tr, 1.0 + 2.0 * C[:, 1, 1] - tr,
-                   1.0 + 2.0 * C[:, 2, 2] - tr], axis=1) / 4.0
-    i = np.argmax(q2, axis=1)
-    q = np.empty((len(C), 4))
-    n = np.arange(len(C))
-    qi = np.sqrt(q2[n, i])
-    d = 4.0 * qi
-    m = C
-    comb = {
-        0: (qi, (m[:, 2, 1] - m[:, 1, 2]) / d, (m[:, 0, 2] - m[:, 2, 0]) / d,
-            (m[:, 1, 0] - m[:, 0, 1]) / d),
-        1: ((m[:, 2, 1] - m[:, 1, 2]) / d, qi, (m[:, 0, 1] + m[:, 1, 0]) / d,
-            (m[:, 0, 2] + m[:, 2, 0]) / d),
-        2: ((m[:, 0, 2] - m[:, 2, 0]) / d, (m[:, 0, 1] + m[:, 1, 0]) / d, qi,
-            (m[:, 1, 2] + m[:, 2, 1]) / d),
-        3: ((m[:, 1, 0] - m[:, 0, 1]) / d, (m[:, 0, 2] + m[:, 2, 0]) / d,
-            (m[:, 1, 2] + m[:, 2, 1]) / d, qi),
-    }
-    for k, comps in comb.items():
-        sel = i == k
-        q[sel] = np.stack([c[sel] for c in comps], axis=1)
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    q[q[:, 0] < 0.0] *= -1.0
-    return q
-
-
-def _vee_rel(Ca: np.ndarray, Cb: np.ndarray) -> np.ndarray:
-    """Rotation vector of Ca^T Cb (small angles), shape (N, 3)."""
-    R = np.einsum('nji,njk->nik', Ca, Cb)
-    v = 0.5 * np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0],
-                        R[:, 1, 0] - R[:, 0, 1]], axis=1)
-    s = np.linalg.norm(v, axis=1)
-    # asin correction keeps the rate exact to O(h^2) even for fast turns.
-    scale = np.where(s > 1e-12, np.arcsin(np.minimum(s, 1.0)) / np.maximum(s, 1e-300), 1.0)
-    return v * scale[:, None]
-
-
-def _central_diff(y: np.ndarray, h: float) -> np.ndarray:
-    d = np.empty_like(y)
-    d[1:-1] = (y[2:] - y[:-2]) / (2.0 * h)
-    d[0] = (y[1] - y[0]) / h
-    d[-1] = (y[-1] - y[-2]) / h
-    return d
-
-
 # --- the simulator: fine-grid truth -------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -275,7 +203,7 @@ def _surface_path(terrain: Terrain, v: np.ndarray, u_fwd: np.ndarray, u_left: np
     for _ in range(30):
         _, grad = terrain.height_and_gradient(xy)
         g_f = (grad * u_fwd).sum(axis=1)
-        xy_new = _cumtrapz((v / np.sqrt(1.0 + g_f * g_f))[:, None] * u_fwd, h)
+        xy_new = cumtrapz((v / np.sqrt(1.0 + g_f * g_f))[:, None] * u_fwd, h)
         change = np.max(np.abs(xy_new - xy))
         xy = xy_new
         if change < 1e-10:
@@ -307,7 +235,7 @@ def _inertial_truth(cfg: ScenarioConfig, C: np.ndarray, v_o: np.ndarray,
     """Specific force and angular rate w.r.t. inertial space (module docstring, step 4)."""
     site = cfg.site
     planet = PLANETS[site.planet]
-    a_o = _central_diff(v_o, h)
+    a_o = central_diff(v_o, h)
     L0 = math.radians(site.latitude_deg)
     g_n = gravity_n(planet, L0, site.height_m)
     g_o = C_ENU_NED @ g_n  # (0, 0, -g)
@@ -317,7 +245,7 @@ def _inertial_truth(cfg: ScenarioConfig, C: np.ndarray, v_o: np.ndarray,
     omega_ib_b = omega_eb_b + np.einsum('nji,j->ni', C, omega_ie_o)
     r_b = np.asarray(cfg.rover.imu_to_base_xyz_m, dtype=float)
     if np.any(r_b != 0.0):
-        alpha_b = _central_diff(omega_ib_b, h)
+        alpha_b = central_diff(omega_ib_b, h)
         f_b = f_b + np.cross(alpha_b, r_b) + np.cross(omega_ib_b, np.cross(omega_ib_b, r_b))
     return _Inertial(f_b, omega_ib_b, g_n, omega_ie_o)
 
@@ -328,7 +256,7 @@ def _rocking(cfg: ScenarioConfig, v: np.ndarray, h: float) -> tuple[np.ndarray, 
     roll-pitch plane, phi the wheel rotation angle integral(|v| / r)."""
     terr = cfg.terrain
     rng = np.random.default_rng([cfg.truth_seed, 1])  # not the hills' and undulation's stream
-    phi = _cumtrapz(np.abs(v) / cfg.rover.wheel_radius_m, h)
+    phi = cumtrapz(np.abs(v) / cfg.rover.wheel_radius_m, h)
     d_roll, d_pitch = np.zeros_like(v), np.zeros_like(v)
     for mult, amp in zip(terr.rocking_harmonics, terr.rocking_rad_per_mps):
         phase, direction = rng.uniform(0.0, 2.0 * math.pi, 2)
@@ -362,10 +290,10 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
     t, h = grid.t_s, grid.h_s
     v, psi_dot, s_cmd, spin = _drive_profiles(cfg, t)
     yaw0 = heading_to_yaw_enu(cfg.site.heading_deg)
-    psi = yaw0 + _cumtrapz(psi_dot, h)
+    psi = yaw0 + cumtrapz(psi_dot, h)
     u_fwd = np.stack([np.cos(psi), np.sin(psi)], axis=1)
     u_left = np.stack([-np.sin(psi), np.cos(psi)], axis=1)
-    xy_flat = _cumtrapz(v[:, None] * u_fwd, h)
+    xy_flat = cumtrapz(v[:, None] * u_fwd, h)
     terrain = _place_terrain(cfg, t, xy_flat, u_fwd, u_left,
                              np.random.default_rng(cfg.truth_seed))
     p_o, g_f, g_l = _surface_path(terrain, v, u_fwd, u_left, xy_flat, h)
@@ -373,19 +301,19 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
     # attitude and velocity of base_link; angular rate by central differences, O(h^2)
     pitch = -np.arctan(g_f)
     roll = np.arctan(g_l / np.sqrt(1.0 + g_f * g_f))
-    C = _attitude(psi, pitch, roll)  # C_base_o
+    C = attitude_dcm(psi, pitch, roll)  # C_base_o
     v_o = v[:, None] * C[:, :, 0]
     if cfg.terrain.rocking_harmonics:  # the body rocks about the path it keeps following
         d_roll, d_pitch = _rocking(cfg, v, h)
         C_path = C
-        C = _attitude(psi, pitch + d_pitch, roll + d_roll)
+        C = attitude_dcm(psi, pitch + d_pitch, roll + d_roll)
         if cfg.terrain.rocking_pivot_depth_m:
             # about an axis below base_link: base_link swings by (C - C_path) (0, 0, depth)
             swing = (C[:, :, 2] - C_path[:, :, 2]) * cfg.terrain.rocking_pivot_depth_m
             p_o = p_o + swing
-            v_o = v_o + _central_diff(swing, h)
+            v_o = v_o + central_diff(swing, h)
     omega_eb_b = np.zeros((len(t), 3))
-    omega_eb_b[1:-1] = _vee_rel(C[:-2], C[2:]) / (2.0 * h)
+    omega_eb_b[1:-1] = vee_rel(C[:-2], C[2:]) / (2.0 * h)
     omega_eb_b[0] = omega_eb_b[1]
     omega_eb_b[-1] = omega_eb_b[-2]
     inertial = _inertial_truth(cfg, C, v_o, omega_eb_b, h)

@@ -289,9 +289,9 @@ def test_tilt_from_an_imu_orientation_through_the_mounting():
     mount = [0.0, 0.0, math.pi / 2]
     C_imu_b = imu_to_body_dcm(mount)  # imu -> FRD
     C_imu_enu = C_base_enu @ C_FLU_FRD @ C_imu_b
-    from slip_estimator.sim.truth import _dcm_to_quat_wxyz
+    from slip_estimator.sim.kinematics import dcm_to_quat_wxyz
 
-    q = tuple(_dcm_to_quat_wxyz(C_imu_enu[None])[0])
+    q = tuple(dcm_to_quat_wxyz(C_imu_enu[None])[0])
     assert tilt_from_orientation(q, C_imu_b) == pytest.approx((roll, pitch), abs=1e-9)
     assert tilt_from_orientation((0.0, 0.0, 0.0, 0.0), C_imu_b) is None
 
