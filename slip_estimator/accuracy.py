@@ -38,7 +38,8 @@ from typing import Any
 
 FAMILIES = ('short', 'default', 'mixed', 'patches', 'rough')
 """The drive families scored by default, in print order (the names of ``sim.bag.SCENARIOS``)."""
-ROBOT_FAMILIES = ('skid_steer_30hz', 'fifty_hz')
+ROBOT_FAMILIES = ('skid_steer_30hz', 'fifty_hz', 'skid_steer_30hz_vibrating',
+                  'skid_steer_30hz_no_slip')
 """Robot profiles that can be scored as families (``sim.robots.ROBOTS``; the gravity-free one
 publishes no slip by design)."""
 BOUND_SPAN_S = 1.5

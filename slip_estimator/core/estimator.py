@@ -25,6 +25,7 @@ from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, LocalEnu
 from slip_estimator.core.slip_model.aid_decision import AidDecision
 from slip_estimator.core.slip_model.model import CHANGE_LOOKBACK_S
+from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor
 from slip_estimator.core.timing import WheelTimingMonitor
@@ -241,15 +242,16 @@ class SlipEstimator:
             return self._unknown(wheel.stamp_ns, wheel.rim_speed_mps)
         self.counters['slip_estimates'] += 1
         st = self.filter.state
-        var_v = (self.filter.variance(self.forward.jacobian(st))
-                 + self.wheel_aid.held_speed_var_mps2(wheel.rim_speed_mps))
+        var_ins = self.filter.variance(self.forward.jacobian(st))
+        var_v = var_ins + self.wheel_aid.held_speed_var_mps2(wheel.rim_speed_mps)
         rim_var = self.wheel_aid.rim_timing_var_mps2(wheel)
         still = self.wheel_aid.stopping(wheel) or self.updater.is_stationary
         est = outputs.slip_estimate(wheel, at.v_fwd_mps, at.yaw_rate_b_rps, var_v,
                                     self.params, still, self.track.width_m, rim_var,
                                     self.wheel_aid.held_slip)
-        self._apply_aid(self.wheel_aid.decide(wheel, at, est, st.C_b_n, turning,
-                                              self.filter.tilt_std_rad()), at)
+        self._apply_aid(self.wheel_aid.decide(
+            wheel, at, est, st.C_b_n, turning, self.filter.tilt_std_rad(),
+            self.filter.forward_reading_var_mps2(SCALES_S), var_ins), at)
         return est
 
     def _apply_aid(self, d: AidDecision | None, at: HistoryPoint) -> None:

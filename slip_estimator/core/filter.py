@@ -38,7 +38,7 @@ from slip_estimator.core.history import Correction
 from slip_estimator.core.mechanization import mechanize_step
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import Planet
-from slip_estimator.core.state import ATT, BA, BG, N_ERR, NavState, correct
+from slip_estimator.core.state import ATT, BA, BG, N_ERR, VEL, NavState, correct
 
 _EYE_15 = np.eye(N_ERR)
 _EYE_15.flags.writeable = False
@@ -239,6 +239,29 @@ class ErrorStateFilter:
         """1-sigma of the attitude's tilt (north and east errors together), rad."""
         i = ATT.start
         return math.sqrt(max(float(self.P[i, i] + self.P[i + 1, i + 1]), 0.0))
+
+    def forward_reading_var_mps2(self, spans_s: tuple[float, ...]) -> list[float]:
+        """Variance of the change of the forward-speed error over each of ``spans_s`` of free
+        running, m^2/s^2, as this filter's covariance predicts it: what a free-INS reading of
+        a speed change over that span cannot resolve.
+
+        The change is ``u^T (Phi(T) - I)[VEL] dx`` (``u``: the body's forward axis in
+        navigation axes; ``Phi(T) ~ I + F T + F^2 T^2 / 2`` at rest-like specific force, so
+        tilt and accelerometer bias act over ``T`` and the gyro bias over ``T^2 / 2``, with
+        their correlations: at rest only ``g tilt - b_a`` is known, and that is what counts),
+        plus the angle random walk (``g^2 S_rg T^3 / 3``) and velocity random walk
+        (``S_ra T``) of the nominal noise model over the span."""
+        st = self.state
+        F = system_matrix(st, (0.0, 0.0, -self.g_mps2), self.planet)
+        FF = F @ F
+        u = st.C_b_n[:, 0]
+        S_rg, S_ra = self._noise_psd[0], self._noise_psd[1]
+        out = []
+        for T in spans_s:
+            h = u @ (T * F[VEL] + (0.5 * T * T) * FF[VEL])
+            out.append(float(h @ self.P @ h) + self.g_mps2 ** 2 * S_rg * T ** 3 / 3.0
+                       + S_ra * T)
+        return out
 
     def variance(self, H: np.ndarray) -> float:
         """``H P H^T`` of a one-row H, from P of the last propagation epoch."""

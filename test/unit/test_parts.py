@@ -627,3 +627,40 @@ def test_a_change_continues_from_the_aided_mean_before_its_onset() -> None:
     early = rec.before(round(-1.0 * ns))  # before the first sample: the oldest one
     assert early.v_free_mps == 0.0 and early.t_ns == 0
 
+
+
+@pytest.mark.parametrize('heading_deg', [0.0, 90.0, 215.0])
+def test_the_free_ins_reading_variance_follows_tilt_bias_and_their_correlation(heading_deg):
+    """Closed form at rest, noise negligible: a pitch-axis tilt sigma s gives (g s T)^2 over T; an
+    x accelerometer bias sigma b gives (b T)^2; a tilt about the forward axis gives nothing;
+    and a tilt fully correlated with the bias so that g tilt - b is known (what ZUPTs at rest
+    teach) gives nothing either. Signs follow the filter's own F, whatever the heading."""
+    p = Params().replace(accel_noise_density_mps2_rthz=1e-6, gyro_noise_density_rps_rthz=1e-6)
+    flt = started_filter(p, heading_rad=math.radians(heading_deg))
+    g, T = 9.8, 2.0
+    psi = math.radians(heading_deg)
+    fwd_tilt = np.array([math.cos(psi), math.sin(psi), 0.0])  # roll axis, NED
+    pitch_tilt = np.array([-math.sin(psi), math.cos(psi), 0.0])  # pitch axis, NED
+    s, b = math.radians(0.5), 0.05
+    def var(P):
+        flt.P = P
+        return flt.forward_reading_var_mps2((T,))[0]
+    P = np.zeros((N_ERR, N_ERR))
+    P[ATT, ATT] = s * s * np.outer(pitch_tilt, pitch_tilt)
+    assert var(P) == pytest.approx((g * s * T) ** 2, rel=1e-3)
+    P = np.zeros((N_ERR, N_ERR))
+    P[ATT, ATT] = s * s * np.outer(fwd_tilt, fwd_tilt)
+    assert var(P) == pytest.approx(0.0, abs=1e-6 * (g * s * T) ** 2)
+    P = np.zeros((N_ERR, N_ERR))
+    P[BA.start, BA.start] = b * b
+    assert var(P) == pytest.approx((b * T) ** 2, rel=1e-3)
+    # Tilt and bias in the one combination that moves no acceleration: found from F itself
+    # by trying both signs; exactly one of them cancels (the other doubles).
+    both = []
+    for sign in (1.0, -1.0):
+        x = np.zeros(N_ERR)
+        x[ATT] = (b / g) * pitch_tilt
+        x[BA.start] = sign * b
+        both.append(var(np.outer(x, x)))
+    assert min(both) == pytest.approx(0.0, abs=1e-9) and max(both) == pytest.approx(
+        (2 * b * T) ** 2, rel=1e-3)

@@ -41,6 +41,22 @@ def test_a_body_that_never_settles_is_measured_after_the_timeout():
     assert feed(m, np.full_like(t, 1.0), 1.0 - 0.3 * t) == pytest.approx(5 * MEASURE_S)
 
 
+@pytest.mark.parametrize('body', [True, False])
+def test_a_body_side_reading_still_moving_at_the_timeout_is_drift(body):
+    """After a body-side alarm a free INS that keeps accelerating (0.3 m/s^2: a 1.7-degree
+    tilt error) at a steady rim is drifting, not slipping; one that settles is not; and a
+    start from rest that times out is measured as before (no hold to keep)."""
+    t = np.arange(0.0, 10.0, DT_S)
+    m = SlipMeasurement(MEASURE_S)
+    m.start(Anchor(1.0, 1.0, True) if body else None)
+    assert feed(m, np.full_like(t, 1.0), 1.0 - 0.3 * t) == pytest.approx(5 * MEASURE_S,
+                                                                         abs=1.5 * DT_S)
+    assert m.drifting() is body
+    m.start(Anchor(1.0, 1.0, True))
+    assert feed(m, np.full_like(t, 1.0), 1.0 - 0.3 * np.clip(t, 0.0, 1.0)) is not None
+    assert not m.drifting()
+
+
 def test_after_a_body_side_alarm_the_free_ins_mean_speed_is_the_measurement():
     # The alarm re-anchored the velocity; the rest of the transition runs through.
     t = np.arange(0.0, 3.0, DT_S)

@@ -471,3 +471,41 @@ def test_every_stop_waits_the_stop_time_before_the_zero_speed_aid():
     second_stop = decisions[110:]
     assert second_stop[:5] == [None] * 5
     assert second_stop[5] is not None and second_stop[5].z_mps == 0.0
+
+
+def test_a_body_side_change_within_the_ins_drift_over_its_span_is_not_resolved():
+    """At 1 m/s with a 2.5-s INS spread of 0.2 m/s (a consumer IMU): a body-side reading of
+    s = 0.35 from a hold of 0 integrated 4 s of free INS, whose drift there is
+    0.2 sqrt(4 / 2.5) = 0.25 m/s; twice that (0.51) is beyond 0.35 m/s, so the hold stays.
+    A reading of 0.6 is resolved; so is 0.35 on an INS ten times better, and a wheel-side
+    reading (the encoders saw it) the body-side rule would not resolve."""
+    from slip_estimator.core.slip_model.chain import SlipChain
+    def held(measured, spread, body_span_s=4.0):
+        chain = SlipChain(Params())  # no baseline (a start in motion): nothing to snap to
+        return chain.settle(measured, 0.0, 1.0, spread, 0.1, False, False, False,
+                            body_span_s=body_span_s, spread_scale_s=2.5)
+    assert held(0.35, 0.04) == 0.0
+    assert held(0.6, 0.04) == 0.6
+    assert held(0.35, 4e-4) == 0.35
+    # 0.14 m/s over 2.5 s (not coarse): 2 x 0.14 x sqrt(4 / 2.5) = 0.36 m/s
+    assert held(0.35, 0.02) == 0.0 and held(0.35, 0.02, body_span_s=None) == 0.35
+
+
+def test_a_start_from_rest_on_a_coarse_ins_takes_the_wheels_as_the_ground():
+    """From rest at 0.8 m/s an INS the filter predicts to drift by 0.3 m/s over 2.5 s
+    (beyond 15 % of the rim speed) cannot place the ground's slip in the low class: zero is
+    the baseline, assumed (its speed variance is then the assumed slip's). Otherwise it
+    measures the ground; so does a model without the filter's prediction."""
+    from slip_estimator.core.slip_model.chain import SlipChain, coarse_ins
+    assert coarse_ins(0.09, 0.8) and not coarse_ins(9e-4, 0.8)
+    chain = SlipChain(Params())
+    assert chain.settle(-0.34, None, 0.8, 0.09, 0.08, True, False, False,
+                        coarse_start=True) == 0.0
+    assert chain.baseline == 0.0 and chain.assumed
+    assert chain.held_speed_var_mps2(0.8, 0.09) == pytest.approx((0.1 * 0.8) ** 2)
+    assert chain.settle(-0.34, None, 0.8, 0.09, 0.08, True, False, False) == -0.34
+    assert not chain.assumed
+    model = SlipModel(Params())
+    for k in range(40):  # a start without the filter's prediction measures the ground
+        model.step(int(k * 1e8), 0.8, 0.6, 0.6, True, False)
+    assert model.slip_hold == pytest.approx(0.25)

@@ -43,3 +43,17 @@ def test_the_aid_acceleration_is_taken_out_of_the_change():
     test = StepTest(1e-4)  # the same ramp without that acceleration is a change
     assert any(test.add(k * _DT_NS, -0.2 * k * 0.1, 0.0, 0.1, 3.5) is not None
                for k in range(60))
+
+
+def test_a_floor_on_the_spread_keeps_a_step_within_it_quiet():
+    """A 0.3 m/s step alarms against the learned prior (0.01 m/s per sqrt(s)), but not
+    against a floor of 0.2 m/s at both scales (the filter knows its free INS drifts that
+    much: a consumer IMU's tilt); the floor also bounds the robust clipping of the learning."""
+    def alarms(floor):
+        test = StepTest(1e-4)
+        n = sum(test.add(k * _DT_NS, 0.0 if k < 50 else -0.3, 0.0, 0.05, 3.5, floor)
+                is not None for k in range(100))
+        return n, test
+    assert alarms(())[0] > 0
+    n, test = alarms((0.04, 0.04))
+    assert n == 0 and test.spread_var[1] > 2.5e-4  # the step was learned from, not clipped

@@ -66,7 +66,8 @@ class SlipChain:
     def settle(self, measured: float, previous: float | None, w: float, spread_var: float,
                wheel_change_mps: float, from_rest: bool, unmeasured: bool,
                implausible_run_ahead: bool, pitch_rad: float = 0.0,
-               pitch_std_rad: float = 0.0) -> float:
+               pitch_std_rad: float = 0.0, body_span_s: float | None = None,
+               spread_scale_s: float = 1.0, coarse_start: bool = False) -> float:
         """The slip to hold after a measurement of ``measured`` at rim speed ``w`` and pitch
         ``pitch_rad`` (1-sigma ``pitch_std_rad``).
 
@@ -76,6 +77,10 @@ class SlipChain:
         from_rest : the measurement started from a ZUPT-anchored stop (a new baseline).
         unmeasured : the INS was re-initialised from the rim (zero slip assumed).
         implausible_run_ahead : a run-ahead no slope explains was measured.
+        body_span_s : for a body-side change, the time its free INS integrated over, s.
+        spread_scale_s : the span ``spread_var`` refers to, s.
+        coarse_start : a start from rest whose measured speed the filter knows too coarse to
+            place the slip within the low class (:func:`coarse_ins` of its own variance).
         """
         p = self.params
         if unmeasured:
@@ -96,7 +101,13 @@ class SlipChain:
             measured = baseline if baseline is not None else 0.0
             self.assumed = self.assumed or baseline is None
         if from_rest:
-            self.baseline, self.assumed, self.chain_var = measured, False, 0.0
+            # An INS the filter knows too coarse to place the ground's slip within the low
+            # class (a vibrating 30-Hz consumer IMU read s = -0.34 after a stop, truth 0)
+            # takes the wheels' speed as the baseline, assumed, as after a start in motion.
+            coarse = coarse_start
+            if coarse:
+                measured = 0.0
+            self.baseline, self.assumed, self.chain_var = measured, coarse, 0.0
             self.baseline_pitch_rad = pitch_rad
             return measured
         # Each change measured from the held model before it adds its INS error to the
@@ -105,6 +116,14 @@ class SlipChain:
         self.chain_var += spread_var
         if previous is not None and abs(measured - previous) * abs(w) < h:
             return previous  # a false alarm: the INS confirms the held slip
+        if previous is not None and body_span_s is not None and \
+                abs(measured - previous) * abs(w) < p.slip_continuity_sigma * math.sqrt(
+                    spread_var * max(body_span_s, spread_scale_s) / spread_scale_s):
+            # A body-side change is the free INS's word alone: one within what this INS
+            # drifts over the span it integrated is not resolved, and the hold stays (a
+            # vibrating 30-Hz consumer IMU read a body stopping at 1.1 m/s where its free
+            # speed had not moved: the aid's own acceleration jumped by 0.4 m/s^2).
+            return previous
         base_pitch = self.baseline_pitch_rad
         other_slope = base_pitch is not None and \
             abs(pitch_rad - base_pitch) > SLOPE_RAD + _SLOPE_SIGMA * pitch_std_rad

@@ -54,6 +54,7 @@ class SlipMeasurement:
     def restart(self) -> None:
         """Measure afresh from the next steady sample (a turn, an unsteady rim, an IMU gap)."""
         self._since_ns: int | None = None
+        self.unsettled = False  # the last measurement ended at the timeout, still moving
 
     def add(self, t_ns: int, w: float, v: float, v_free: float, noise_var: float) -> bool:
         """One steady, straight sample (rim speed ``w``, the filter's forward speed ``v``, the
@@ -71,11 +72,27 @@ class SlipMeasurement:
         half = len(vals) // 2
         dv = (sum(x[1] for x in vals[half:]) / (len(vals) - half)
               - sum(x[1] for x in vals[:half]) / max(half, 1))
-        if abs(dv) > max(_SETTLED_MPS, 2.0 * math.sqrt(noise_var)) and \
-                t_ns - self._since_ns < self._timeout_ns:
-            del vals[:half]  # still speeding up or slowing down: measure on
-            return False
+        if abs(dv) > max(_SETTLED_MPS, 2.0 * math.sqrt(noise_var)):
+            if t_ns - self._since_ns < self._timeout_ns:
+                del vals[:half]  # still speeding up or slowing down: measure on
+                return False
+            self.unsettled = True
         return True
+
+    def drifting(self) -> bool:
+        """A body-side measurement that timed out with the speed still moving at a steady rim:
+        a slip is piecewise constant and settles within seconds, a tilt error accelerates
+        the free INS for as long as it runs (a consumer IMU read s = 0.13 -> 1.0 so, while the
+        truth held 0)."""
+        return self.unsettled and self.anchor is not None and self.anchor.body
+
+    def body_span_s(self) -> float | None:
+        """Time from a body-side change's continuity anchor to the end of its measurement, s
+        (what the free INS integrated over); None for any other measurement."""
+        a = self.anchor
+        if a is None or not a.body or not self._vals:
+            return None
+        return (self._vals[-1][4] - a.t_ns) * 1e-9
 
     def slip(self, previous: float | None, continuity_sigma: float, noise_var: float,
              spread_var: float, spread_scale_s: float) -> float:

@@ -125,6 +125,8 @@ class SlipModel:
         self.chain.reset()
         self._reanchor, self._quiet_until_ns = False, 0
         self._carried_var_mps2 = 0.0  # the last hold's, while nothing re-measured the speed
+        self._reading_var: list[float] = []  # the filter's free-INS prediction per scale
+        self._speed_var = 0.0  # the filter's forward-speed variance at the last sample
 
     def reset(self, from_rest: bool) -> None:
         """Forget the held slip and the stop under way: a stop (``from_rest``: the next start
@@ -144,8 +146,11 @@ class SlipModel:
     # ------------------------------------------------------------------ the step
     def step(self, t_ns: int, w: float, v: float, v_free: float, moving: bool,
              turning: bool, pitch_rad: float = 0.0, aid_accel_mps2: float = 0.0,
-             pitch_std_rad: float = 0.0) -> AidDecision | None:
+             pitch_std_rad: float = 0.0, reading_var_mps2: list[float] | None = None,
+             speed_var_mps2: float = 0.0) -> AidDecision | None:
         self._last_t_ns = t_ns
+        self._reading_var = reading_var_mps2 or []
+        self._speed_var = speed_var_mps2
         self._aid_accel = aid_accel_mps2
         self._run_ahead.add(t_ns, pitch_rad)
         self._pitch_std_rad = pitch_std_rad
@@ -197,15 +202,26 @@ class SlipModel:
         """The slip a finished measurement settles on: what it measured, held as the chain
         decides (baseline, false alarm, run-ahead: :class:`SlipChain`)."""
         unmeasured = self._measurement.anchor is None and not self._from_rest
+        # A body-side reading still moving at the timeout is INS drift (SlipMeasurement.
+        # drifting). Where the filter's own error model says its INS cannot place a slip
+        # within the low class (coarse_ins), a reading is held to what that INS resolves: a
+        # body-side change to the free INS's predicted drift over its span (shortest scale),
+        # a start from rest to the speed's variance at the end of its measurement.
+        drifting = self._measurement.drifting()
+        body_span_s = self._measurement.body_span_s() \
+            if self._reading_var and coarse_ins(self._reading_var[0], w) else None
+        coarse_start = self._from_rest and coarse_ins(self._speed_var, w)
         measured = self._measurement.slip(self._previous, self.params.slip_continuity_sigma,
                                           self.aid_noise_var, self.spread_var[-1],
                                           SCALES_S[-1])
         from_rest, self._from_rest = self._from_rest, False
+        if drifting and self._previous is not None:
+            return self._previous  # INS drift, not a change: the hold stays
         ra = self._run_ahead
         return self.chain.settle(
             measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
             from_rest, unmeasured, not from_rest and ra.implausible(measured), ra.pitch_rad,
-            self._pitch_std_rad)
+            self._pitch_std_rad, body_span_s, SCALES_S[-1], coarse_start)
 
     def held_speed_var_mps2(self, w: float) -> float:
         """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided
@@ -230,8 +246,14 @@ class SlipModel:
     # ------------------------------------------------------------------ tracking
     @property
     def spread_var(self) -> list[float]:
-        """Learned variance of the free residual's change at each step-test scale, m^2/s^2."""
-        return self.step_test.spread_var
+        """Variance of the free residual's change at each step-test scale, m^2/s^2: the one
+        learned online, or the filter's own prediction of the free INS over that scale if
+        larger (``reading_var_mps2`` of :meth:`step`: a tilt the filter knows it does not
+        know is a drift the step test must not take for slip, before it has learned it)."""
+        floor = self._reading_var
+        if not floor:
+            return self.step_test.spread_var
+        return [max(a, b) for a, b in zip(self.step_test.spread_var, floor)]
 
     @property
     def rim_speed_mps(self) -> float | None:
@@ -286,7 +308,7 @@ class SlipModel:
         # Body side: a step of the free residual.
         k = self.params.slip_change_sigma * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
         onset_ns = self.step_test.add(t_ns, v_free - z, self._aid_accel,
-                                      self.wheel_change_mps(w), k)
+                                      self.wheel_change_mps(w), k, self._reading_var)
         if quiet:
             onset_ns = None
         if onset_ns is not None:
@@ -299,7 +321,8 @@ class SlipModel:
                 # the onset are the old slip's and are taken back; after a start in motion
                 # they are still levelling the INS (a 30-Hz consumer IMU lost 1-2.5 deg).
                 take_back = before.last_ns if self.baseline is not None else None
-                self._start_change(Anchor(before.z_mps, before.v_free_mps, True), 'body')
+                self._start_change(Anchor(before.z_mps, before.v_free_mps, True, t_ns=before.t_ns),
+                                   'body')
                 # Re-anchor now on continuity (the aid had been pulling the INS back onto the
                 # old slip): the held speed before the onset plus the free speed change since,
                 # without the aid corrections made since the onset. The mean free speed is the

@@ -44,9 +44,10 @@ class StepTest:
         self._smooth: deque = deque()  # (t, smoothed rho, aid acceleration)
 
     def add(self, t_ns: int, rho: float, aid_accel_mps2: float, min_step_mps: float,
-            k: float) -> int | None:
+            k: float, floor_var: tuple[float, ...] | list[float] = ()) -> int | None:
         """Add one sample; return the onset time on an alarm (a change larger than
-        ``min_step_mps`` and ``k`` times its learned spread at some scale), else None."""
+        ``min_step_mps`` and ``k`` times its spread at some scale: the learned one, or
+        ``floor_var`` at that scale if larger), else None."""
         free = self._free
         free.append((t_ns, rho))
         self._free_sum += rho
@@ -69,11 +70,12 @@ class StepTest:
                 continue
             # The change since then without the aid corrections made since then.
             d = rho_s - then[1] + then[2] * (t_ns - then[0]) * 1e-9
-            h = max(min_step_mps, k * math.sqrt(self.spread_var[i]))
+            var = max(self.spread_var[i], floor_var[i]) if floor_var else self.spread_var[i]
+            h = max(min_step_mps, k * math.sqrt(var))
             if abs(d) > h:
                 alarm = t_then if alarm is None else min(alarm, t_then)
             else:  # learn the spread at this scale, robustly (clipped at 3 sigma)
-                d2 = min(d * d, 9.0 * self.spread_var[i])
+                d2 = min(d * d, 9.0 * var)
                 n = self._spread_n[i] = min(self._spread_n[i] + 1, _SPREAD_MEMORY_N)
                 self.spread_var[i] += (d2 - self.spread_var[i]) / n
         return alarm

@@ -95,15 +95,18 @@ class WheelAid:
         return self.slip_model.held_speed_var_mps2(rim_speed_mps)
 
     def decide(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate,
-               C_b_n: np.ndarray, turning: bool, tilt_std_rad: float = 0.0
-               ) -> AidDecision | None:
+               C_b_n: np.ndarray, turning: bool, tilt_std_rad: float = 0.0,
+               reading_var_mps2: list[float] | None = None,
+               speed_var_mps2: float = 0.0) -> AidDecision | None:
         """The slip model's decision for one evaluated wheel sample (``est`` its slip, ``at``
         the history at its instant, ``C_b_n`` the attitude now, ``tilt_std_rad`` its tilt
-        1-sigma)."""
+        1-sigma; ``reading_var_mps2`` the filter's free-INS prediction per step-test scale and
+        ``speed_var_mps2`` its forward-speed variance, :meth:`SlipModel.step`)."""
         if self._mode != 'hold':
             return None
         w = wheel.rim_speed_mps
         moving = est.slip_class > 0 and abs(w) >= self._moving_speed_mps
         pitch_rad = -math.asin(max(-1.0, min(1.0, float(C_b_n[2, 0]))))
         return self.slip_model.step(wheel.stamp_ns, w, at.v_fwd_mps, at.v_free_mps, moving,
-                                    turning, pitch_rad, at.aid_accel_mps2, tilt_std_rad)
+                                    turning, pitch_rad, at.aid_accel_mps2, tilt_std_rad,
+                                    reading_var_mps2, speed_var_mps2)
