@@ -112,7 +112,7 @@ class Updater:
     def wheel_yaw_rate(self, flt: ErrorStateFilter, wheel: WheelSample, yaw_rate_b_rps: float,
                        stationary: StationaryDetector, imu_rate: ImuRate) -> list[Correction]:
         """The wheel yaw-rate aid at one wheel sample (``yaw_rate_b_rps``: the gyro z rate
-        less its bias at its instant, FRD), while moving (at rest ZARU does it); the gyro
+        less its bias over its interval, FRD), while moving (at rest ZARU does it); the gyro
         sample's variance is the IMU window's (noise and vibration), at least the white noise's.
         The correction made (none when not applied)."""
         moving = not self.is_stationary
