@@ -17,8 +17,8 @@ interval it averages out.
 How much it may be trusted, ``R`` (rad^2/s^2, per wheel sample), is the sum of
 
 * the encoders: ``2 sigma_w^2 / B_eff^2`` (each side's rim speed ``wheel_speed_std_mps``);
-* the gyro sample it is compared with: its variance in the IMU window (white noise and
-  vibration), at least ``N_g^2 / dt``;
+* the gyro rate it is compared with: the variance of one sample in the IMU window (white
+  noise and vibration), at least ``N_g^2 / dt``, over the samples the wheel interval averages;
 * the effective track: ``z^2 * relative_var`` (a turn scrubs, and how much depends on the
   ground and the slip; :attr:`TrackWidthEstimator.relative_var`). It grows with the
   differential, so straight driving (differential ~0 whatever ``B_eff`` is) constrains the
@@ -102,12 +102,15 @@ class WheelYawAid:
         return self.enabled and moving and wheel.rim_difference_mps is not None
 
     def constraint(self, wheel: WheelSample, yaw_rate_b_rps: float, state: NavState,
-                   gyro_var_rps2: float, moving: bool) -> Constraint | None:
+                   gyro_var_rps2: float, moving: bool,
+                   imu_dt_s: float | None = None) -> Constraint | None:
         """Feed the track-width fit with one wheel sample and the gyro z rate less its bias
         over its interval (``yaw_rate_b_rps``, FRD); the yaw-rate constraint to apply (None:
         the aid is off, the sides are unknown, the robot is not ``moving`` (ZARU's case), or no
         interval yet).
-        ``gyro_var_rps2``: the variance of one gyro sample now."""
+        ``gyro_var_rps2``: the variance of one gyro sample now; with the IMU interval
+        ``imu_dt_s`` that of ``yaw_rate_b_rps``, a mean over the wheel interval, is taken as
+        the white-noise share of it (never more than one sample's)."""
         diff_mps = wheel.rim_difference_mps
         self.track.add(-yaw_rate_b_rps, diff_mps)
         last_ns, self._last_ns = self._last_ns, wheel.stamp_ns
@@ -120,5 +123,7 @@ class WheelYawAid:
         innovation = self.model.innovation(state, yaw_rate_b_rps + float(state.b_g[2]), z_rps)
         w = min(1.0, interval_s / _RESIDUAL_MEMORY_S)
         self.unexplained_rps += w * (float(innovation[0]) - self.unexplained_rps)
+        if imu_dt_s is not None:  # the gyro rate is a mean over the wheel interval
+            gyro_var_rps2 *= min(1.0, imu_dt_s / interval_s)
         R = self.model.covariance(self.variance_rps2(z_rps, width_m, gyro_var_rps2, interval_s))
         return Constraint(self.model.name, innovation, self.model.jacobian(state), R)
