@@ -233,8 +233,12 @@ class SlipEstimator:
         if at is None:
             self.counters['wheel_late'] += 1
             return None
-        for correction in self.updater.wheel_yaw_rate(self.filter, wheel, at.yaw_rate_b_rps,
-                                                      self.stationary, self.imu_rate):
+        # The yaw-rate aid compares the differential with the gyro over the wheel interval.
+        yaw_rate_rps = self.history.mean_yaw_rate_b_rps(
+            *self.updater.yaw_aid.rate_window_ns(wheel, self._wheel_latency_ns))
+        for correction in self.updater.wheel_yaw_rate(
+                self.filter, wheel, at.yaw_rate_b_rps if yaw_rate_rps is None else yaw_rate_rps,
+                self.stationary, self.imu_rate):
             self.history.apply(correction, aid=False)
         turning = self.updater.is_turning
         if self.supervisor.recovering(wheel.stamp_ns):

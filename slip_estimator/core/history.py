@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Iterator
+from itertools import islice
 from typing import NamedTuple
 
 import numpy as np
@@ -152,6 +153,37 @@ class ForwardSpeedHistory:
         a = 0.0 if t1 == t0 else (stamp_ns - t0) / (t1 - t0)
         return HistoryPoint(v0 + a * (v1 - v0) + self._shift_mps, y0 + a * (y1 - y0),
                             f0 + a * (f1 - f0), a0 + a * (a1 - a0))
+
+    def mean_yaw_rate_b_rps(self, start_ns: int, end_ns: int) -> float | None:
+        """The mean over ``[start_ns, end_ns]`` (clipped to the recorded span) of the gyro z
+        rate less its bias (FRD, linearly interpolated between samples), rad/s: what a wheel
+        sample's count difference over that interval turned at. A single sample would not do:
+        a vibration line the IMU rate folds onto a multiple of the wheel rate (a 70-Hz
+        resonance at 30 Hz is 10 Hz) holds one phase at every wheel instant and reads as a
+        gyro bias; over a whole wheel interval it averages out. None outside the horizon;
+        the interpolated value when the interval is empty."""
+        h = self._rows
+        if not h or end_ns < h[0][0] or start_ns > h[-1][0]:
+            return None
+        start_ns, end_ns = max(start_ns, h[0][0]), min(end_ns, h[-1][0])
+        if end_ns <= start_ns:
+            return self.at(start_ns).yaw_rate_b_rps
+        lo, hi = 0, len(h) - 1  # lo: the last row at or before start_ns
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if h[mid][0] <= start_ns:
+                lo = mid
+            else:
+                hi = mid
+        area = 0.0  # trapezoids of the linear interpolant, from start_ns to end_ns
+        t_prev, y_prev = start_ns, self.at(start_ns).yaw_rate_b_rps
+        for t, _, y, _, _ in islice(h, lo + 1, None):
+            if t >= end_ns:
+                break
+            area += 0.5 * (y + y_prev) * (t - t_prev)
+            t_prev, y_prev = t, y
+        area += 0.5 * (self.at(end_ns).yaw_rate_b_rps + y_prev) * (end_ns - t_prev)
+        return area / (end_ns - start_ns)
 
 
 class WheelQueue:

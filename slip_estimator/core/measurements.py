@@ -59,11 +59,20 @@ class ZeroAngularRate:
         self.rate_std_rps = rate_std_rps
         self.gyro_noise_density_rps_rthz = gyro_noise_density_rps_rthz
 
-    def covariance(self, period_s: float) -> np.ndarray:
-        """``R = (sigma_w^2 + N_g^2 / T) I``, rad^2/s^2: the constraint's own spread plus the
-        gyro white noise of a mean over ``period_s``."""
-        r = self.rate_std_rps ** 2 + self.gyro_noise_density_rps_rthz ** 2 / period_s
-        return np.eye(3) * r
+    def covariance(self, period_s: float, sample_var_rps2: np.ndarray | None = None,
+                   dt_s: float = 0.0) -> np.ndarray:
+        """``R = diag(sigma_w^2 + max(N_g^2, s^2 dt) / T)``, rad^2/s^2: the constraint's own
+        spread plus the gyro noise of a mean over ``T = period_s``: the white noise of the
+        parameters, or, when larger, that of the scatter ``s^2`` (per axis) of single samples
+        ``dt_s`` apart in the IMU window now. The parameters' noise may not be the IMU's: a
+        robot that starts moving learns it at its first stop, after ZARU has begun (a consumer
+        gyro at 0.02 rad/s per sample against the default 2e-4 rad/s/sqrt(Hz): R 300 times
+        too small, its first updates took the bias from a few samples and turned the heading
+        by the bias-heading correlation, 26 deg on the simulated no-slip seed 1)."""
+        white = np.full(3, self.gyro_noise_density_rps_rthz ** 2)
+        if sample_var_rps2 is not None:
+            white = np.maximum(white, np.asarray(sample_var_rps2) * dt_s)
+        return np.diag(self.rate_std_rps ** 2 + white / period_s)
 
     def innovation(self, state: NavState, omega_ib_b_mean: np.ndarray) -> np.ndarray:
         """``C_n_b omega_ie_n - (omega_ib_b - b_g)``, rad/s, with the window-mean gyro rate."""
@@ -205,14 +214,18 @@ class PseudoMeasurements:
         self.zupt, self.zaru, self.nhc = zupt, zaru, nhc
 
     def select(self, state: NavState, omega_ib_b_mean: np.ndarray, period_s: float,
-               stationary: bool, turning: bool) -> Iterator[Constraint]:
+               stationary: bool, turning: bool, gyro_var_rps2: np.ndarray | None = None,
+               dt_s: float = 0.0) -> Iterator[Constraint]:
         """The constraints in order, each evaluated when the previous one has been applied
-        (``state`` is then the corrected one): a generator, to be consumed one by one."""
+        (``state`` is then the corrected one): a generator, to be consumed one by one.
+        ``gyro_var_rps2``: the gyro scatter per axis in the IMU window (samples ``dt_s``
+        apart), for ZARU (:meth:`ZeroAngularRate.covariance`)."""
         if stationary:
             yield Constraint('zupt', self.zupt.innovation(state), self.zupt.jacobian(state),
                              self.zupt.covariance())
             yield Constraint('zaru', self.zaru.innovation(state, omega_ib_b_mean),
-                             self.zaru.jacobian(state), self.zaru.covariance(period_s))
+                             self.zaru.jacobian(state),
+                             self.zaru.covariance(period_s, gyro_var_rps2, dt_s))
             return
         rows = (2,) if turning else (1, 2)
         nhc = self.nhc

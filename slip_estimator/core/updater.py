@@ -98,8 +98,11 @@ class Updater:
                                                stationary.recent_rim_speed_mps(stamp_ns),
                                                track_width_m)
         out = []
+        window = stationary.window
+        gyro_var = window.variance()[3:] if self.is_stationary and window.n >= 2 else None
         for c in self.constraints.select(flt.state, w_mean, max(1, n) * imu_rate.dt_s,
-                                         self.is_stationary, self.is_turning):
+                                         self.is_stationary, self.is_turning, gyro_var,
+                                         imu_rate.dt_s):
             correction = self.update(flt, c.name, c.innovation, c.H, c.R, c.channels)
             if correction is not None:
                 out.append(correction)
@@ -112,14 +115,15 @@ class Updater:
     def wheel_yaw_rate(self, flt: ErrorStateFilter, wheel: WheelSample, yaw_rate_b_rps: float,
                        stationary: StationaryDetector, imu_rate: ImuRate) -> list[Correction]:
         """The wheel yaw-rate aid at one wheel sample (``yaw_rate_b_rps``: the gyro z rate
-        less its bias at its instant, FRD), while moving (at rest ZARU does it); the gyro
+        less its bias over its interval, FRD), while moving (at rest ZARU does it); one gyro
         sample's variance is the IMU window's (noise and vibration), at least the white noise's.
         The correction made (none when not applied)."""
         moving = not self.is_stationary
         gyro_var_rps2 = self.params.gyro_noise_density_rps_rthz ** 2 / imu_rate.dt_s
         if stationary.window.n >= 2 and self.yaw_aid.applies(wheel, moving):
             gyro_var_rps2 = max(gyro_var_rps2, float(stationary.window.variance()[5]))
-        c = self.yaw_aid.constraint(wheel, yaw_rate_b_rps, flt.state, gyro_var_rps2, moving)
+        c = self.yaw_aid.constraint(wheel, yaw_rate_b_rps, flt.state, gyro_var_rps2, moving,
+                                    imu_rate.dt_s)
         if c is not None:
             self._monitor.add_yaw_disagreement(self.yaw_aid.unexplained_rps,
                                                self.params.wheel_yaw_rate_std_rps)

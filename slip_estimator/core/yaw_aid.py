@@ -6,13 +6,19 @@ heading (and so the z bias) unobservable. A consumer gyro's turn-on bias (0.5 de
 turns the heading by half a degree per second. The wheels measure the yaw rate too:
 ``rim_R - rim_L = B_eff * omega`` (:mod:`slip_estimator.core.track_width`), so
 :class:`~slip_estimator.core.measurements.WheelYawRate` compares ``-(rim_R - rim_L) / B_eff``
-(FRD) with the gyro z rate less its bias at each wheel sample while the robot moves.
+(FRD) with the gyro z rate less its bias at each wheel sample while the robot moves, the
+gyro averaged over the interval the sample's rim speeds describe
+(:meth:`WheelYawAid.rate_window_ns`): a vibration line that the IMU rate folds onto a
+multiple of the wheel rate (a 70-Hz chassis resonance sampled at 30 Hz is 10 Hz) holds one
+phase at every wheel instant, so a single gyro sample reads it as a bias, and the aid taught
+it to the filter (0.005 rad/s, 100 deg over the simulated vibrating 395-s drive); over the
+interval it averages out.
 
 How much it may be trusted, ``R`` (rad^2/s^2, per wheel sample), is the sum of
 
 * the encoders: ``2 sigma_w^2 / B_eff^2`` (each side's rim speed ``wheel_speed_std_mps``);
-* the gyro sample it is compared with: its variance in the IMU window (white noise and
-  vibration), at least ``N_g^2 / dt``;
+* the gyro rate it is compared with: the variance of one sample in the IMU window (white
+  noise and vibration), at least ``N_g^2 / dt``, over the samples the wheel interval averages;
 * the effective track: ``z^2 * relative_var`` (a turn scrubs, and how much depends on the
   ground and the slip; :attr:`TrackWidthEstimator.relative_var`). It grows with the
   differential, so straight driving (differential ~0 whatever ``B_eff`` is) constrains the
@@ -77,18 +83,34 @@ class WheelYawAid:
         return (self._encoder_var_mps2 / width_m ** 2 + gyro_var_rps2
                 + (z_rps ** 2 * self.track.relative_var + slip_var) * 2.0 * ground_s)
 
+    def rate_window_ns(self, wheel: WheelSample, latency_ns: int) -> tuple[int, int]:
+        """The IMU interval (start, end ns) whose mean gyro rate a wheel sample's
+        differential is compared with: its wheel interval (since the previous sample, at most
+        ``_MAX_INTERVAL_S``; empty for the first), centred on its mean age ``latency_ns``
+        before its stamp. The rim speeds are count differences over that interval, so a
+        single gyro sample in it would mismatch them by whatever vibration the interval
+        averages out (:meth:`.ForwardSpeedHistory.mean_yaw_rate_b_rps`)."""
+        last_ns = self._last_ns
+        span_ns = 0 if last_ns is None or wheel.stamp_ns <= last_ns else \
+            min(wheel.stamp_ns - last_ns, int(_MAX_INTERVAL_S * _NS))
+        start_ns = wheel.stamp_ns - latency_ns - span_ns // 2
+        return start_ns, start_ns + span_ns
+
     def applies(self, wheel: WheelSample, moving: bool) -> bool:
         """Whether a wheel sample can give the constraint at all: the aid is on, the sides
         are known, and the robot is ``moving`` (at rest ZARU does it)."""
         return self.enabled and moving and wheel.rim_difference_mps is not None
 
     def constraint(self, wheel: WheelSample, yaw_rate_b_rps: float, state: NavState,
-                   gyro_var_rps2: float, moving: bool) -> Constraint | None:
+                   gyro_var_rps2: float, moving: bool,
+                   imu_dt_s: float | None = None) -> Constraint | None:
         """Feed the track-width fit with one wheel sample and the gyro z rate less its bias
-        at its instant (``yaw_rate_b_rps``, FRD); the yaw-rate constraint to apply (None:
+        over its interval (``yaw_rate_b_rps``, FRD); the yaw-rate constraint to apply (None:
         the aid is off, the sides are unknown, the robot is not ``moving`` (ZARU's case), or no
         interval yet).
-        ``gyro_var_rps2``: the variance of one gyro sample now."""
+        ``gyro_var_rps2``: the variance of one gyro sample now; with the IMU interval
+        ``imu_dt_s`` that of ``yaw_rate_b_rps``, a mean over the wheel interval, is taken as
+        the white-noise share of it (never more than one sample's)."""
         diff_mps = wheel.rim_difference_mps
         self.track.add(-yaw_rate_b_rps, diff_mps)
         last_ns, self._last_ns = self._last_ns, wheel.stamp_ns
@@ -101,5 +123,7 @@ class WheelYawAid:
         innovation = self.model.innovation(state, yaw_rate_b_rps + float(state.b_g[2]), z_rps)
         w = min(1.0, interval_s / _RESIDUAL_MEMORY_S)
         self.unexplained_rps += w * (float(innovation[0]) - self.unexplained_rps)
+        if imu_dt_s is not None:  # the gyro rate is a mean over the wheel interval
+            gyro_var_rps2 *= min(1.0, imu_dt_s / interval_s)
         R = self.model.covariance(self.variance_rps2(z_rps, width_m, gyro_var_rps2, interval_s))
         return Constraint(self.model.name, innovation, self.model.jacobian(state), R)

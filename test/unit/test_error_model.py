@@ -81,6 +81,18 @@ def test_zaru_jacobian():
     _check_jacobian(lambda s: m.innovation(s, w), m.jacobian(est), est, np.random.default_rng(3))
 
 
+def test_zaru_covariance_is_never_below_the_gyro_scatter_in_the_window():
+    """R of a mean over T = 0.1 s: the declared white noise N_g^2 / T, or the scatter of single
+    samples dt apart over the samples averaged, s^2 dt / T, per axis, whichever is larger."""
+    m = ZeroAngularRate(EARTH, 1e-5, 2e-4)
+    declared = 1e-10 + 4e-8 / 0.1
+    assert np.allclose(m.covariance(0.1), np.eye(3) * declared)
+    scatter = np.array([0.02 ** 2, 1e-12, 0.01 ** 2])  # 30 Hz: 3 samples in the mean
+    R = m.covariance(0.1, scatter, 1.0 / 30.0)
+    assert np.allclose(np.diag(R), [1e-10 + 0.02 ** 2 / 3.0, declared, 1e-10 + 0.01 ** 2 / 3.0])
+    assert not R[~np.eye(3, dtype=bool)].any()
+
+
 @pytest.mark.parametrize('rows', [(1, 2), (2,)])
 def test_nhc_jacobian_with_lever_arm(rows):
     est = nominal_state()

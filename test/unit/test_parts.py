@@ -276,6 +276,32 @@ def test_history_keeps_its_horizon_and_interpolates():
     assert len(h) == 0 and h.at(500_000_000) is None
 
 
+def test_history_mean_yaw_rate_over_a_wheel_interval_cancels_a_folded_vibration_line():
+    """A 70-Hz resonance sampled at 30 Hz is a 10-Hz line: at 10-Hz wheel instants the gyro
+    sample (or its interpolation) holds one phase of it, a false rate of up to its amplitude;
+    its mean over any whole 0.1-s wheel interval is the rate itself."""
+    h = ForwardSpeedHistory((0.0, 0.0, 0.0))
+    rate_rps, line_rps = 0.02, 0.05
+    for k in range(60):
+        t_s = k / 30.0
+        w_z = rate_rps + line_rps * math.sin(2.0 * math.pi * 70.0 * t_s + 0.7)
+        h.record(round(t_s * 1e9), level_state(), [0.0, 0.0, w_z], 1.0 / 30.0)
+    ms = 1_000_000
+    wheel_ns = [1000 * ms + k * 100 * ms for k in range(9)]
+    single = [h.at(t - 50 * ms).yaw_rate_b_rps for t in wheel_ns]
+    assert np.ptp(single) < 1e-6 and abs(single[0] - rate_rps) > 0.3 * line_rps
+    for offset_ns in (0, 50 * ms, 17 * ms):  # intervals starting anywhere
+        for t in wheel_ns:
+            mean = h.mean_yaw_rate_b_rps(t - offset_ns - 100 * ms, t - offset_ns)
+            assert mean == pytest.approx(rate_rps, abs=1e-6)
+    # clipped to the recorded span; an empty interval is the interpolated rate; outside: None
+    newest_ns = h.newest()[0]
+    assert h.mean_yaw_rate_b_rps(newest_ns - 100 * ms, newest_ns + 500 * ms) == pytest.approx(
+        h.mean_yaw_rate_b_rps(newest_ns - 100 * ms, newest_ns))
+    assert h.mean_yaw_rate_b_rps(1234 * ms, 1234 * ms) == h.at(1234 * ms).yaw_rate_b_rps
+    assert h.mean_yaw_rate_b_rps(newest_ns + ms, newest_ns + 100 * ms) is None
+
+
 # ---------------------------------------------------------------------------- supervisor
 def test_filter_verdicts():
     p = Params()
