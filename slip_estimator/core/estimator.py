@@ -21,6 +21,7 @@ from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
 from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint, WheelQueue
 from slip_estimator.core.measurements import ForwardSpeed
+from slip_estimator.core.odometry_guard import OdometryGuard, decide, ins_speed_error_var
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, LocalEnu
 from slip_estimator.core.slip_model.aid_decision import AidDecision
@@ -76,6 +77,7 @@ class SlipEstimator:
         self.supervisor.reset()
         self.wheel_aid = WheelAid(p)
         self.slip_model = self.wheel_aid.slip_model
+        self.odometry_guard = OdometryGuard()
 
     @property
     def params(self) -> Params:
@@ -256,6 +258,10 @@ class SlipEstimator:
         self._apply_aid(self.wheel_aid.decide(
             wheel, at, est, st.C_b_n, turning, self.filter.tilt_std_rad(),
             self.filter.forward_reading_var_mps2(SCALES_S), var_ins), at)
+        chain = self.slip_model.chain  # a hold measured from rest: no change chained to it
+        self.odometry_guard.wheel(decide(
+            est, ins_speed_error_var(self.slip_model.spread_var, SCALES_S),
+            not chain.assumed and chain.chain_var == 0.0, self.params.slip_change_sigma))
         return est
 
     def _apply_aid(self, d: AidDecision | None, at: HistoryPoint) -> None:
@@ -308,10 +314,17 @@ class SlipEstimator:
         return self.filter.P
 
     def odometry(self) -> OdometryEstimate | None:
-        """Fused base_link in odom; before alignment None (no usable IMU: wheels only)."""
+        """Published base_link in odom: the fused solution, advanced as wheels + gyro where the
+        IMU cannot resolve slip (:mod:`~slip_estimator.core.odometry_guard`; each call advances
+        the published track to the last IMU stamp); before alignment None (no usable IMU:
+        wheels only)."""
         if not self.aligned:
             refused = self.alignment.imu_problem is not None and self.stamp_ns is not None
             return self._wheel_odo.estimate(self.stamp_ns) if refused else None
+        return self.odometry_guard.publish(self.fused_odometry())
+
+    def fused_odometry(self) -> OdometryEstimate:
+        """The filter's own solution of base_link in odom (aligned only)."""
         return outputs.odometry(self.stamp_ns, self.filter.state, self.filter.P,
                                 self.omega_ib_b, self._l_bw_b, self.planet, self.odom_frame,
                                 self.params.gyro_noise_density_rps_rthz ** 2 / self.imu_rate.dt_s)
@@ -321,4 +334,4 @@ class SlipEstimator:
         motion = (self.updater.is_stationary, self.updater.is_turning)
         return self.supervisor.health(self.stamp_ns, self.filter, motion, self.monitor,
                                       self.timing, self.track.width_m, self.alignment.imu_problem,
-                                      self.slip_model)
+                                      self.slip_model, self.odometry_guard.figures())

@@ -229,10 +229,12 @@ class Supervisor:
     def health(self, stamp_ns: int | None, flt: ErrorStateFilter,
                motion: tuple[bool, bool],
                monitor: ResidualMonitor, timing: WheelTimingMonitor, track_width_m: float,
-               imu_problem: str | None, slip_model: SlipModel) -> Health:
+               imu_problem: str | None, slip_model: SlipModel,
+               odometry: tuple[dict, str | None] = ({}, None)) -> Health:
         """The health report from the parts' figures and suspicions (``motion``: stationary
         and turning at the last update), the events of the last 10 s, the recovery and the
-        bias bounds; the slip model's resolution limit is stated, not a fault (no WARN)."""
+        bias bounds; the slip model's resolution limit and the odometry's fallback
+        (``odometry``: :meth:`OdometryGuard.figures`) are stated, not faults (no WARN)."""
         p = self.params
         values: dict = dict(self.counters)
         state = flt.state
@@ -280,5 +282,8 @@ class Supervisor:
         values.update(slip_values)
         if limit is not None and not motion[0]:
             notes.append(limit)  # after the level: a limit of the IMU, not a fault
+        values.update(odometry[0])
+        if odometry[1] is not None:
+            notes.append(odometry[1])
         head = 'recovering' if self.recovering_until_ns is not None else 'running'
         return Health(level, head + (': ' + '; '.join(notes) if notes else ''), values)

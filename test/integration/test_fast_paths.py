@@ -321,7 +321,7 @@ def quaternion_of(C: np.ndarray) -> np.ndarray:
 
 
 def odometry_matrices(est: SlipEstimator):
-    """odometry() as matrix formulas: p, q, v, w, pose and twist covariance."""
+    """fused_odometry() as matrix formulas: p, q, v, w, pose and twist covariance."""
     st = est.state
     r_bw_n = st.C_b_n @ est.l_bw_b
     T = curvilinear_to_ned(est.planet, st.llh[0], st.llh[2])
@@ -344,7 +344,7 @@ def odometry_matrices(est: SlipEstimator):
 
 
 def test_odometry_equals_the_matrix_formulas():
-    """odometry() on floats (scaled-permutation covariance, Shepperd quaternion) against the
+    """fused_odometry() on floats (scaled-permutation covariance, Shepperd quaternion) against the
     matrix formulas, with a lever arm, along a simulated drive: equal to round-off."""
     from slip_estimator.sim import short_scenario
 
@@ -357,7 +357,7 @@ def test_odometry_equals_the_matrix_formulas():
         count[0] += 1
         if (count[0] - 1) % 97 or not est.aligned:
             return
-        odo = est.odometry()
+        odo = est.fused_odometry()
         p, q, v, w, pose, twist = odometry_matrices(est)
         for fast, ref in ((odo.p_ob_o, p), (odo.q_ob_wxyz, q),
                           (odo.v_ob_b, v), (odo.omega_ob_b, w),

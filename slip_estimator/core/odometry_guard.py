@@ -1,0 +1,151 @@
+"""Odometry that does no harm: the published track falls back to wheels + gyro where the IMU
+cannot resolve slip.
+
+The fused forward speed differs from the rim speed only by the slip the INS reads. A slip
+reading is worth more than the wheels only where the INS's speed error is small against the
+slip classes. Where that error exceeds the fraction of the rim speed within which a slip can
+be placed in the low class (:func:`~slip_estimator.core.slip_model.chain.coarse_ins`, the slip
+model's own "coarse INS" test), a medium or extreme reading is as likely the INS's error as the
+ground's slip, and following it costs the slip times the distance: on a vibrating 30-Hz
+consumer IMU a false body-side alarm held the INS at 0 m/s for 180 s while the wheels read
+1 m/s. There the published position advances as wheels + gyro: the rim speed along the fused
+attitude's x axis (the fused heading and slope), from where the published track was; elsewhere
+by the fused position's increments. The track is continuous either way (no jump at a switch).
+
+The INS's speed error is the IMU's own measured error over a measuring span: the slip model's
+learned spread of the free residual's change (:attr:`SlipModel.spread_var`) at its longest
+scale, or its 1-s spread carried to that scale as a random walk, if larger (it is learned
+sooner). One exception keeps a coarse INS: a slip measured from rest (on a stop's zero
+velocity, no change chained to it since) that puts the body's speed beyond
+``slip_change_sigma`` of that error from the rim speed: wheels spinning on a body that stayed
+stuck, which the free INS sees from a ZUPT far better than over a running measuring span.
+
+Not resolved here (measured): the first tens of seconds after an in-motion start on a
+consumer IMU, before the spread is learned (its prior is the wheel aid's noise): the INS's
+reading is followed there. The fallback follows the rim speed, so it follows a wheel-side
+slip it cannot resolve; it is taken only where a slip cannot be placed at all.
+
+Only the standard library and numpy are used.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from slip_estimator.core.slip_model.chain import coarse_ins
+from slip_estimator.core.types import OdometryEstimate, SlipEstimate
+from slip_estimator.core.wheel_odometry import SPEED_STD_FRACTION
+
+
+def ins_speed_error_var(spread_var_mps2: list[float], scales_s: tuple[float, ...]) -> float:
+    """Variance of the INS's forward-speed error over a measuring span, m^2/s^2: the learned
+    spread at the longest scale, or a shorter scale's carried to it as a random walk
+    (variance proportional to time), whichever is larger."""
+    longest = scales_s[-1]
+    return max(v * longest / s for v, s in zip(spread_var_mps2, scales_s))
+
+
+def x_axis_odom(q_wxyz: np.ndarray) -> tuple[float, float, float]:
+    """The base_link x axis in odom of the orientation ``q_wxyz`` (first DCM column)."""
+    w, x, y, z = q_wxyz.tolist()
+    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
+
+
+@dataclass(frozen=True)
+class GuardDecision:
+    """The guard's verdict at one wheel sample."""
+
+    moving: bool
+    """the wheels move and the slip is known (the share of fallback counts these)"""
+    fallback: bool
+    """True: the published track advances as wheels + gyro"""
+    rim_speed_mps: float
+    ins_error_mps: float
+    """the INS's forward-speed error the verdict rests on (:func:`ins_speed_error_var`)"""
+
+
+def decide(est: SlipEstimate, ins_error_var_mps2: float, anchored: bool,
+           resolving_sigmas: float) -> GuardDecision:
+    """Fall back where the wheels move (a known slip class above 'none') and the INS's speed
+    error (variance ``ins_error_var_mps2``) is too coarse to place a slip in the low class;
+    not while the slip is unknown (the rim speed then re-anchors the INS itself), and not
+    where the slip was measured from rest (``anchored``: on a stop's zero velocity, where the
+    free INS is far better than its error over a measuring span) and the INS reads the body's
+    speed beyond ``resolving_sigmas`` of that error from the rim speed: wheels spinning on a
+    body that stayed stuck."""
+    w = est.wheel_speed_mps
+    err = math.sqrt(max(ins_error_var_mps2, 0.0))
+    moving = est.slip_class > 0 and math.isfinite(est.slip_ratio)
+    resolved = anchored and abs(est.body_speed_mps - w) > resolving_sigmas * err
+    return GuardDecision(moving, moving and coarse_ins(ins_error_var_mps2, w) and not resolved,
+                         w, err)
+
+
+class OdometryGuard:
+    """The published track (see the module docstring): :meth:`wheel` takes each evaluated
+    wheel sample's verdict, :meth:`publish` turns the fused odometry into the published one."""
+
+    def __init__(self) -> None:
+        self.decision: GuardDecision | None = None
+        self._offset_m = np.zeros(3)  # published minus fused position
+        self._var_m2 = 0.0  # variance the fallback added to the position
+        self._last: tuple[int, np.ndarray] | None = None  # (stamp, fused position) published
+        self.samples = {'moving': 0, 'fallback': 0}
+
+    def wheel(self, decision: GuardDecision) -> None:
+        """The verdict at the latest evaluated wheel sample (holds until the next)."""
+        self.decision = decision
+        if decision.moving:
+            self.samples['moving'] += 1
+            self.samples['fallback'] += decision.fallback
+
+    @property
+    def fallback(self) -> bool:
+        """True while the published track advances as wheels + gyro."""
+        return self.decision is not None and self.decision.fallback
+
+    def publish(self, odo: OdometryEstimate) -> OdometryEstimate:
+        """The published odometry at ``odo.stamp_ns`` from the fused ``odo``: its position
+        advanced since the last call by the fused increment, or in fallback by the rim speed
+        along the fused x axis (then the linear twist is that speed, forward)."""
+        last, self._last = self._last, (odo.stamp_ns, odo.p_ob_o)
+        d = self.decision
+        if d is None or not d.fallback:
+            if self._var_m2 == 0.0 and not self._offset_m.any():
+                return odo  # never fell back: the fused solution itself
+            return self._shifted(odo)
+        if last is not None and odo.stamp_ns > last[0]:
+            dt = (odo.stamp_ns - last[0]) * 1e-9
+            step_m = d.rim_speed_mps * dt
+            fused_step = odo.p_ob_o - last[1]
+            self._offset_m = self._offset_m + np.array(x_axis_odom(odo.q_ob_wxyz)) * step_m \
+                - fused_step
+            self._var_m2 += (SPEED_STD_FRACTION * step_m) ** 2
+        out = self._shifted(odo)
+        twist_cov = out.twist_covariance.copy()
+        twist_cov[0, :] = twist_cov[:, 0] = 0.0
+        twist_cov[0, 0] = (SPEED_STD_FRACTION * d.rim_speed_mps) ** 2  # the wheels' slip
+        return replace(out, v_ob_b=np.array((d.rim_speed_mps, 0.0, 0.0)),
+                       twist_covariance=twist_cov)
+
+    def _shifted(self, odo: OdometryEstimate) -> OdometryEstimate:
+        pose_cov = odo.pose_covariance.copy()
+        pose_cov[0, 0] += self._var_m2
+        pose_cov[1, 1] += self._var_m2
+        return replace(odo, p_ob_o=odo.p_ob_o + self._offset_m, pose_covariance=pose_cov)
+
+    def figures(self) -> tuple[dict, str | None]:
+        """Values for /diagnostics and, while the fallback is taken, a note naming it."""
+        d = self.decision
+        n = self.samples['moving']
+        values = {'odometry_fallback': self.fallback,
+                  'odometry_fallback_share': self.samples['fallback'] / n if n else 0.0,
+                  'odometry_ins_speed_error_mps': d.ins_error_mps if d else math.nan}
+        note = None
+        if d is not None and d.fallback:
+            note = ('odometry: wheels + gyro fallback (INS speed error %.2f m/s over %.2f m/s '
+                    'of rim speed: slip not resolvable, position advanced at the rim speed '
+                    'along the fused heading)' % (d.ins_error_mps, abs(d.rim_speed_mps)))
+        return values, note

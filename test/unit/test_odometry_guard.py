@@ -1,0 +1,120 @@
+"""The odometry guard (core/odometry_guard.py): when the published track falls back to wheels +
+gyro, and what it then publishes, in closed form; on a consumer-IMU drive, the fallback named
+in the health report."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from slip_estimator.core.odometry_guard import (GuardDecision, OdometryGuard, decide,
+                                                ins_speed_error_var)
+from slip_estimator.core.types import OdometryEstimate, SlipEstimate
+from slip_estimator.core.wheel_odometry import SPEED_STD_FRACTION
+
+NS = 1_000_000_000
+
+
+def _slip(rim_mps: float, body_mps: float, slip_class: int = 1) -> SlipEstimate:
+    s = 1.0 - body_mps / rim_mps if slip_class >= 0 else math.nan
+    return SlipEstimate(0, s, 0.1, slip_class, body_mps, 0.1, rim_mps)
+
+
+def _odometry(t_s: float, p_ob_o, yaw_rad: float) -> OdometryEstimate:
+    q = np.array([math.cos(0.5 * yaw_rad), 0.0, 0.0, math.sin(0.5 * yaw_rad)])
+    return OdometryEstimate(round(t_s * NS), np.array(p_ob_o, dtype=float), q,
+                            np.array([0.3, 0.01, 0.0]), np.zeros(3), np.eye(6) * 1e-2,
+                            np.eye(6) * 1e-3)
+
+
+def test_ins_speed_error_is_the_longest_span_or_a_shorter_one_carried_to_it():
+    """Random-walk scaling: 0.01 m^2/s^2 over 1 s is 0.025 over 2.5 s, above 0.02 learned
+    there; below it (0.004 -> 0.01) the 2.5-s spread stands."""
+    assert ins_speed_error_var([0.01, 0.02], (1.0, 2.5)) == pytest.approx(0.025)
+    assert ins_speed_error_var([0.004, 0.02], (1.0, 2.5)) == pytest.approx(0.02)
+
+
+def test_falls_back_only_where_a_slip_cannot_be_placed_in_the_low_class():
+    """At 1 m/s the coarse-INS bound is 0.15 m/s (chain.coarse_ins): 0.16 falls back, 0.14
+    does not; nor a stop, an unknown slip, or a slip measured from rest beyond 3.5 sigmas."""
+    coarse, fine = 0.16 ** 2, 0.14 ** 2
+    assert decide(_slip(1.0, 0.0, 4), coarse, False, 3.5).fallback
+    assert not decide(_slip(1.0, 0.0, 4), fine, False, 3.5).fallback
+    assert not decide(_slip(0.0 + 1e-9, 0.0, 0), coarse, False, 3.5).fallback  # at rest
+    assert not decide(_slip(1.0, math.nan, -1), coarse, False, 3.5).fallback  # unknown
+    # From rest: a stuck body (1.0 m/s from the rim > 3.5 * 0.16) is resolved; 0.2 m/s is not.
+    assert not decide(_slip(1.0, 0.0, 4), coarse, True, 3.5).fallback
+    assert decide(_slip(1.0, 0.8, 2), coarse, True, 3.5).fallback
+    d = decide(_slip(1.0, 0.0, 4), coarse, False, 3.5)
+    assert d == GuardDecision(True, True, 1.0, pytest.approx(0.16))
+
+
+def test_never_fallen_back_publishes_the_fused_solution_itself():
+    guard = OdometryGuard()
+    guard.wheel(decide(_slip(1.0, 0.98), 0.01 ** 2, False, 3.5))
+    odo = _odometry(1.0, (3.0, 4.0, 0.5), 0.3)
+    assert guard.publish(odo) is odo
+    assert guard.figures() == ({'odometry_fallback': False, 'odometry_fallback_share': 0.0,
+                                'odometry_ins_speed_error_mps': pytest.approx(0.01)}, None)
+
+
+def test_fallback_advances_at_the_rim_speed_along_the_heading_then_resumes_without_a_jump():
+    """A fused track drifting east at 0.3 m/s while heading north (ENU yaw 90 deg), wheels at
+    1 m/s: 2 s of fallback publish (0, 2, 0) with the forward speed 1 m/s and (0.1 * 1 m)^2
+    per second on x and y; back on the fused track, its 1-m step east lands at (1, 2, 0)."""
+    guard = OdometryGuard()
+    guard.wheel(decide(_slip(1.0, 0.0, 4), 0.5 ** 2, False, 3.5))
+    north = 0.5 * math.pi
+    for t in (0.0, 1.0):
+        guard.publish(_odometry(t, (0.3 * t, 0.0, 0.0), north))
+    out = guard.publish(_odometry(2.0, (0.6, 0.0, 0.0), north))
+    np.testing.assert_allclose(out.p_ob_o, (0.0, 2.0, 0.0), atol=1e-12)
+    np.testing.assert_allclose(out.v_ob_b, (1.0, 0.0, 0.0))
+    assert out.twist_covariance[0, 0] == pytest.approx(SPEED_STD_FRACTION ** 2)
+    assert out.pose_covariance[0, 0] == pytest.approx(1e-2 + 2 * SPEED_STD_FRACTION ** 2)
+    values, note = guard.figures()
+    assert values['odometry_fallback'] and values['odometry_fallback_share'] == 1.0
+    assert note is not None and 'wheels + gyro fallback' in note
+    guard.wheel(decide(_slip(1.0, 0.98), 0.01 ** 2, False, 3.5))
+    out = guard.publish(_odometry(3.0, (1.6, 0.0, 0.0), 0.0))
+    np.testing.assert_allclose(out.p_ob_o, (1.0, 2.0, 0.0), atol=1e-12)
+    np.testing.assert_allclose(out.v_ob_b, (0.3, 0.01, 0.0))  # the fused twist again
+    assert guard.figures()[1] is None
+    assert guard.figures()[0]['odometry_fallback_share'] == 0.5
+
+
+def test_fallback_through_a_quarter_circle_ends_at_radius_radius():
+    """1 m/s at pi/20 rad/s for 10 s from the origin heading east (fused position frozen):
+    a quarter circle of radius 20/pi m ends at (R, R), to the step's first-order error."""
+    guard = OdometryGuard()
+    guard.wheel(decide(_slip(1.0, 0.0, 4), 0.5 ** 2, False, 3.5))
+    rate, dt = math.pi / 20.0, 1e-3
+    out = None
+    for k in range(10_001):
+        out = guard.publish(_odometry(k * dt, (0.0, 0.0, 0.0), rate * k * dt))
+    r = 20.0 / math.pi
+    np.testing.assert_allclose(out.p_ob_o[:2], (r, r), atol=2e-3)
+
+
+def test_a_consumer_imu_false_alarm_falls_back_and_is_named_in_the_health_report():
+    """The 30-Hz vibrating consumer IMU over ground without slip (seed 1, 120 s): a false
+    body-side alarm holds the INS near 0 m/s from about 68 s while the wheels read 1 m/s.
+    The published forward speed is the wheels' there (the fused one reads about 0) and
+    /diagnostics names the fallback."""
+    from slip_estimator.effects import run_core
+    from slip_estimator.sim import simulate
+    from slip_estimator.sim.bag import sim_params
+    from slip_estimator.sim.robots import no_slip_robot
+    from slip_estimator.streams import from_simulation
+
+    scenario = no_slip_robot(1).scenario.replace(duration_s=120.0)
+    r = simulate(scenario)
+    p = sim_params(r)
+    est, _, odo = run_core(p, from_simulation(r, p), odometry_every=3)
+    late = odo[:, 0] > odo[0, 0] + 80 * NS
+    assert np.mean(odo[late, 1]) > 0.6  # the published forward speed is the wheels'
+    health = est.health()
+    assert health.values['odometry_fallback'] is True
+    assert 'odometry: wheels + gyro fallback' in health.message
+    assert health.level < 2
