@@ -163,7 +163,7 @@ class SlipEstimatorNode(Node):
         self._last_imu_wall = time.monotonic()
         self.input_callbacks = 0
         """Input messages handled so far (:func:`spin` drains until it stops growing)."""
-        self.outputs_after_round = False
+        self.output_steps = False
         """True while :func:`spin` runs the node: outputs wait for :meth:`publish_outputs`."""
         self._outputs: list[Output] = []
         self._watchdog = self.create_timer(
@@ -264,7 +264,7 @@ class SlipEstimatorNode(Node):
 
     def _emit(self, outputs: list[Output]) -> None:
         """Publish ``outputs`` now, or queue them for the output step under :func:`spin`."""
-        if self.outputs_after_round:
+        if self.output_steps:
             self._outputs += outputs
         else:
             self._publish(outputs)
