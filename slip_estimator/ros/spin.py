@@ -5,7 +5,7 @@ Spin loop
 Jazzy's ``rclpy.experimental.EventsExecutor`` in a ``spin_once`` loop (its ``spin()`` would
 hold the GIL from other Python threads); without it, the ``SingleThreadedExecutor``. One round:
 wait for the first ready event, handle every input message that is ready, one callback per
-message in arrival order, back to back, each followed by its output step; sleep
+message in arrival order, back to back; publish what they gave (the output step); sleep
 ``input_batch_period_s`` (read-only node parameter, default 0.01 s; 0 wakes for every
 message); the next round handles what arrived meanwhile.
 
@@ -15,15 +15,15 @@ of CPU per IMU callback then, against about 0.1 ms warm). The price is up to tha
 extra latency of the outputs; the input queues (2 s at 250 Hz) absorb far more.
 
 The output step: under :func:`spin` the input callbacks and the watchdog timer do not
-publish; the loop publishes what a step of the executor gave right after it, in the order the
-adapter gave it, as a step of its own (timed like a callback, below). A reliable publish to a
+publish; their outputs wait, in the order the adapter gave them, for the end of the round,
+and go out in one step of their own (timed like a callback, below). A reliable publish to a
 subscribed reader takes about 0.1 ms of CPU but returns after 0.2 to several ms of wall time
-when the reader it wakes takes the core, and the callback after it then often waits for the
-core as well. Measured at 250 Hz (docs/performance.md): the p99 over every callback fell from
-1.3-2.2 ms with the publishes inside the callbacks to 0.8-1.5 ms; publishing once after the
-whole round instead cost about 1 ms of odometry latency at the median. Outputs and their
-order are unchanged, and each leaves right after the callback that built it, as before. A node
-spun by any other executor publishes from its callbacks.
+when the reader it wakes takes the core, and the callbacks after it then often wait for the
+core as well. Measured at 250 Hz (docs/performance.md, "Live node, third pass"): the p99
+over every callback was lower than with the publishes right after each callback in 6 of 6
+paired runs (0.87-1.29 ms against 1.30-3.91 ms), at the price of about 1 ms more odometry
+latency at the median (about 5 ms at the p99). Outputs and their order are unchanged. A node spun
+by any other executor publishes from its callbacks.
 
 Garbage collection: everything built before the loop (modules, the node, the estimator) is
 frozen out of the collector's reach (:func:`gc.freeze`), so a full collection walks only what
@@ -91,7 +91,6 @@ def spin(node: Any) -> None:
             executor.spin_once(timeout_sec=SPIN_ONCE_TIMEOUT_S)  # the first (waits for it)
             handled = -1
             while handled != node.input_callbacks:  # the rest, until none was ready
-                node.publish_outputs()  # what the last step gave, if anything
                 handled = node.input_callbacks
                 executor.spin_once(timeout_sec=0.0)
             node.publish_outputs()
