@@ -329,6 +329,12 @@ def _live_figures(args: argparse.Namespace, sent: dict[str, Any], discovery_s: f
         'publisher_max_late_ms': sent['publisher_max_late_ms'],
         'callback_p50_ms': num('callback_p50_ms'), 'callback_p99_ms': num('callback_p99_ms'),
         'callback_max_ms': num('callback_max_ms'), 'callback_window': num('callback_window'),
+        # Every callback the node runs (inputs, its output step, timers, services); NaN for a
+        # node that does not report them (before the output step).
+        'all_callbacks_p50_ms': num('all_callbacks_p50_ms'),
+        'all_callbacks_p99_ms': num('all_callbacks_p99_ms'),
+        'all_callbacks_max_ms': num('all_callbacks_max_ms'),
+        'all_callbacks_window': num('all_callbacks_window'),
         'odometry_received': len(latencies_ms),
         'end_to_end': _percentiles(latencies_ms),
         'diagnostics_received': n_diags,

@@ -89,6 +89,9 @@ def print_live(res: dict[str, Any]) -> None:
             f'{r["publisher_late"]} ({r["publisher_max_late_ms"]:.2f})',
             (f'{_fmt(r["callback_p50_ms"])} / {_fmt(r["callback_p99_ms"])} / '
              f'{_fmt(r["callback_max_ms"])}'),
+            (f'{_fmt(r.get("all_callbacks_p50_ms", np.nan))} / '
+             f'{_fmt(r.get("all_callbacks_p99_ms", np.nan))} / '
+             f'{_fmt(r.get("all_callbacks_max_ms", np.nan))}'),
             f'{_fmt(e2e["p50_ms"])} / {_fmt(e2e["p99_ms"])} / {_fmt(e2e["max_ms"])}',
             r.get('node_cpu_percent_of_one_core', float('nan')),
             (f'{_fmt(r.get("node_rss_mb", float("nan")))} / '
@@ -97,6 +100,7 @@ def print_live(res: dict[str, Any]) -> None:
 
     names = ('IMU received / sent', 'JointState received / sent', 'IMU stamp gaps (node)',
              'publisher late sends (max ms)', 'IMU callback p50 / p99 / max ms',
+             'every callback p50 / p99 / max ms',
              'IMU stamp -> odometry p50 / p99 / max ms', 'node CPU, % of one core',
              'node RSS / peak MiB')
     cols = [column(r) for r in runs]
@@ -108,7 +112,11 @@ def print_live(res: dict[str, Any]) -> None:
     print(f'  odometry at the node default odometry_rate_hz = {first["odometry_rate_hz"]:g} '
           '(latency measured on those IMU stamps); counters from the node\'s final '
           '/diagnostics (watchdog STALE report); stamp gaps are publisher send jitter '
-          '(> 1.5 periods between stamps), drops are received < sent')
+          '(> 1.5 periods between stamps), drops are received < sent; IMU callback: convert, '
+          'core step, build the outputs (and publish them, in a node without an output step); '
+          '"every callback": the '
+          "input callbacks, the node's output step (publishing), its timers and services "
+          '(n/a: a node that does not time them)')
 
 
 def print_memory(res: dict[str, Any]) -> None:

@@ -20,19 +20,12 @@ Receiving
 ---------
 The inputs are subscribed ``raw=True``: rclpy hands over the serialized bytes, which
 :mod:`slip_estimator.ros.cdr` decodes straight into the core's records (no Python message
-object per sample; malformed or big-endian bytes are counted as rejections). The node spins
-Jazzy's ``rclpy.experimental.EventsExecutor`` in a ``spin_once`` loop (its ``spin()`` would
-hold the GIL from other Python threads); without it, the ``SingleThreadedExecutor``. Measured
-at 250 Hz IMU + 10 Hz wheels (``slip-estimator bench --only live``, docs/performance.md): the
+object per sample; malformed or big-endian bytes are counted as rejections). Measured at
+250 Hz IMU + 10 Hz wheels (``slip-estimator bench --only live``, docs/performance.md): the
 executor and the per-message objects were most of the node's CPU.
 
-Batches: after handling every message that is ready, the loop sleeps
-``input_batch_period_s`` (read-only node parameter, default 0.01 s; 0 wakes for every
-message) and then handles what arrived meanwhile, one callback per message in arrival order,
-back to back. A callback that runs right after another one finds the interpreter's and the
-estimator's data in the caches; one woken alone, 4 ms after the last, does not (about
-0.3 ms of CPU per IMU callback then, against about 0.1 ms warm). The price is up to that
-period of extra latency of the outputs; the input queues (2 s at 250 Hz) absorb far more.
+How the node spins (the events executor, input batches, the output step, gc), how every
+callback is timed and how it stops: :mod:`slip_estimator.ros.spin`.
 
 Parameters
 ----------
@@ -49,27 +42,6 @@ Parameter files: a file with no section for the node's name is reported at ERROR
 the sections it has (its values do not apply); a name that is not a parameter of the node
 (misspelled) makes the node refuse to start (exit 2) unless ``allow_unknown_parameters`` is
 true.
-
-Callback latency
-----------------
-Every ``/imu/data`` callback (convert, core step, building and publishing the outputs) is timed
-with ``time.perf_counter`` into a ring buffer of the last ``CALLBACK_WINDOW`` callbacks; each
-``/diagnostics`` status the node publishes carries ``callback_p50_ms``, ``callback_p99_ms`` and
-``callback_max_ms`` over that window and ``callback_window`` (callbacks in it); ``unknown``
-before the first callback. ``slip-estimator bench --only live`` reads them.
-
-Shutdown
---------
-Ctrl-C (SIGINT) or SIGTERM ends the spin, or the start when it comes before the node is
-built, with status 0 (SIGTERM shuts rclpy's context down from its signal thread, under a
-half-built node or a running callback: the call that then fails is the stop, not an error;
-nothing is published once the context is down). The node then destroys its DDS
-entities within ``TEARDOWN_TIMEOUT_S``. Fast DDS 2.14 (Jazzy) can deadlock in that teardown
-when a peer's endpoints leave at the same moment (the participant's ``set_listener`` waits for
-a discovery callback that waits for a lock the teardown holds; seen about once in 80 stops of
-a test whose client node left just before the SIGINT). The wait holds the GIL, so the guard is
-``faulthandler``'s C watchdog: past the timeout it prints every thread's stack and exits with
-status 1 instead of hanging until launch escalates to SIGKILL.
 """
 from __future__ import annotations
 
@@ -77,7 +49,6 @@ import sys
 import time
 from typing import Any
 
-import numpy as np
 import rclpy
 from diagnostic_msgs.msg import KeyValue
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
@@ -110,7 +81,7 @@ from slip_estimator.paramfile import (
     unknown_parameters,
 )
 from slip_estimator.ros.cdr_out import serialize
-from slip_estimator.ros.spin import bounded_teardown, spin
+from slip_estimator.ros.spin import CallbackDurations, bounded_teardown, spin, timed
 from slip_estimator.ros.adapter import (
     OUTPUT_TYPES,
     TOPIC_DIAGNOSTICS,
@@ -130,6 +101,9 @@ STALE_AFTER_S = 1.0
 """The watchdog reports STALE 'no IMU data' when no IMU message arrived for this long (wall)."""
 CALLBACK_WINDOW = 15000
 """IMU callback durations kept for the ``callback_*_ms`` diagnostics (60 s at 250 Hz)."""
+ALL_CALLBACKS_WINDOW = 18000
+"""Durations of every callback kept for the ``all_callbacks_*_ms`` diagnostics (about 60 s at
+250 Hz IMU, 10 Hz wheels and their output steps)."""
 
 
 def input_qos(depth: int) -> QoSProfile:
@@ -171,6 +145,8 @@ class SlipEstimatorNode(Node):
         self.get_logger().info('effective parameters: ' + ', '.join(
             f'{k}={v!r}' for k, v in params.to_dict().items()))
 
+        self._imu_durations = CallbackDurations(CALLBACK_WINDOW)
+        self._all_durations = CallbackDurations(ALL_CALLBACKS_WINDOW)
         self._pubs = {topic: self.create_publisher(
             cls, topic, output_qos(100 if topic in (TOPIC_SLIP, TOPIC_SLIP_RATIO) else 10))
             for topic, cls in OUTPUT_TYPES.items()}
@@ -185,16 +161,17 @@ class SlipEstimatorNode(Node):
             f'{", ".join(OUTPUT_TYPES)}')
 
         self._last_imu_wall = time.monotonic()
-        # Ring buffer of the last CALLBACK_WINDOW IMU callback durations, s (a numpy array:
-        # the percentiles read it without a copy into an array each report).
-        self._imu_callback_s = np.zeros(CALLBACK_WINDOW)
-        self._imu_callbacks = 0
         self.input_callbacks = 0
         """Input messages handled so far (:func:`spin` drains until it stops growing)."""
+        self.output_steps = False
+        """True while :func:`spin` runs the node: outputs wait for :meth:`publish_outputs`."""
+        self._outputs: list[Output] = []
         self._watchdog = self.create_timer(
             STALE_AFTER_S, self._check_imu_stale, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._reset_service = self.create_service(Trigger, '~/reset', self._on_reset)
+        for entity in (*self.timers, *self.services):  # rclpy's parameter services included
+            entity.callback = timed(entity.callback, self._all_durations)
 
     def _check_parameter_sources(self, param_files: list[str]) -> None:
         """Log an ERROR for a params file with no section for this node (a misspelled node name
@@ -263,25 +240,47 @@ class SlipEstimatorNode(Node):
 
     def _callback(self, topic: str):  # noqa: ANN202 -- rclpy callback
         handle = self.adapter.on_raw
+        is_imu = topic == TOPIC_IMU
+        durations = self._all_durations
 
         def callback(raw: bytes) -> None:
             t0 = time.perf_counter()
             self.input_callbacks += 1
-            if topic == TOPIC_IMU:
+            if is_imu:
                 self._last_imu_wall = time.monotonic()
             try:
                 outputs = handle(topic, raw)
                 if outputs:
-                    self._publish(outputs)
+                    self._emit(outputs)
             except Exception as exc:  # noqa: BLE001 -- never die on one message
                 self.adapter.count_exception(topic)
                 self.get_logger().error(f'{topic} callback failed: {exc!r}',
                                         throttle_duration_sec=5.0)
-            if topic == TOPIC_IMU:
-                self._imu_callback_s[self._imu_callbacks % CALLBACK_WINDOW] = (
-                    time.perf_counter() - t0)
-                self._imu_callbacks += 1
+            seconds = time.perf_counter() - t0
+            durations.add(seconds)
+            if is_imu:
+                self._imu_durations.add(seconds)
         return callback
+
+    def _emit(self, outputs: list[Output]) -> None:
+        """Publish ``outputs`` now, or queue them for the output step under :func:`spin`."""
+        if self.output_steps:
+            self._outputs += outputs
+        else:
+            self._publish(outputs)
+
+    def publish_outputs(self) -> None:
+        """The output step: publish the queued outputs in order (timed as one callback)."""
+        if not self._outputs:
+            return
+        t0 = time.perf_counter()
+        outputs, self._outputs = self._outputs, []
+        try:
+            self._publish(outputs)
+        except Exception as exc:  # noqa: BLE001 -- as an input callback: never die on it
+            self.adapter.count_exception('output step')
+            self.get_logger().error(f'output step failed: {exc!r}', throttle_duration_sec=5.0)
+        self._all_durations.add(time.perf_counter() - t0)
 
     def _publish(self, outputs: list[Output]) -> None:
         if not self.context.ok():  # stopping (a signal shut the context down): nowhere to send
@@ -292,24 +291,19 @@ class SlipEstimatorNode(Node):
             self._pubs[topic].publish(serialize(msg))  # bytes: rclpy's publish_raw
 
     def _add_callback_stats(self, msg: Any) -> None:
-        """Append the IMU callback duration percentiles to every status of a DiagnosticArray."""
-        n = min(self._imu_callbacks, CALLBACK_WINDOW)
-        if n:
-            ms = self._imu_callback_s[:n] * 1e3
-            p50, p99 = np.percentile(ms, (50.0, 99.0))
-            stats = [f'{p50:.3f}', f'{p99:.3f}', f'{ms.max():.3f}']
-        else:
-            stats = ['unknown'] * 3
-        values = [KeyValue(key=k, value=v) for k, v in zip(
-            ('callback_p50_ms', 'callback_p99_ms', 'callback_max_ms'), stats)]
-        values.append(KeyValue(key='callback_window', value=str(n)))
+        """Append the callback duration percentiles to every status of a DiagnosticArray."""
+        keys = ('p50_ms', 'p99_ms', 'max_ms', 'window')
+        values = [KeyValue(key=f'callback_{k}', value=v)
+                  for k, v in zip(keys, self._imu_durations.summary_ms())]
+        values += [KeyValue(key=f'all_callbacks_{k}', value=v)
+                   for k, v in zip(keys, self._all_durations.summary_ms())]
         for status in msg.status:
             status.values = list(status.values) + values
 
     def _check_imu_stale(self) -> None:
         if time.monotonic() - self._last_imu_wall > STALE_AFTER_S:
             stamp_ns = self.get_clock().now().nanoseconds
-            self._publish(self.adapter.stale_diagnostics(stamp_ns, 'no IMU data'))
+            self._emit(self.adapter.stale_diagnostics(stamp_ns, 'no IMU data'))
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
         ours = {p.name: coerce_param_value(p.name, p.value) for p in parameters

@@ -1,11 +1,69 @@
-"""How the node runs and stops: the spin loop (the events executor, input batches) and a
-teardown bounded in time (see :mod:`slip_estimator.ros.node`, sections Receiving and Shutdown)."""
+"""How the node runs and stops: the spin loop, the timing of every callback, the teardown.
+
+Spin loop
+---------
+Jazzy's ``rclpy.experimental.EventsExecutor`` in a ``spin_once`` loop (its ``spin()`` would
+hold the GIL from other Python threads); without it, the ``SingleThreadedExecutor``. One round:
+wait for the first ready event, handle every input message that is ready, one callback per
+message in arrival order, back to back; publish what they gave (the output step); sleep
+``input_batch_period_s`` (read-only node parameter, default 0.01 s; 0 wakes for every
+message); the next round handles what arrived meanwhile.
+
+Batches: a callback that runs right after another one finds the interpreter's and the
+estimator's data in the caches; one woken alone, 4 ms after the last, does not (about 0.3 ms
+of CPU per IMU callback then, against about 0.1 ms warm). The price is up to that period of
+extra latency of the outputs; the input queues (2 s at 250 Hz) absorb far more.
+
+The output step: under :func:`spin` the input callbacks and the watchdog timer do not
+publish; their outputs wait, in the order the adapter gave them, for the end of the round,
+and go out in one step of their own (timed like a callback, below). A reliable publish to a
+subscribed reader takes about 0.1 ms of CPU but returns after 0.2 to several ms of wall time
+when the reader it wakes takes the core, and the callbacks after it then often wait for the
+core as well. Measured at 250 Hz (docs/performance.md, "Live node, third pass"): the p99
+over every callback was lower than with the publishes right after each callback in 6 of 6
+paired runs (0.87-1.29 ms against 1.30-3.91 ms), at the price of about 1 ms more odometry
+latency at the median (about 5 ms at the p99). Outputs and their order are unchanged. A node spun
+by any other executor publishes from its callbacks.
+
+Garbage collection: everything built before the loop (modules, the node, the estimator) is
+frozen out of the collector's reach (:func:`gc.freeze`), so a full collection walks only what
+was allocated since, instead of every object of rclpy and numpy (a 30-120 ms pause inside a
+callback about once in 20 s at 250 Hz, measured in docs/performance.md).
+
+Callback durations
+------------------
+Every callback the node runs is timed (``time.perf_counter``, wall) into ring buffers
+(:class:`CallbackDurations`): the ``/imu/data`` callbacks (convert, core step, build the
+outputs) in one of the last ``CALLBACK_WINDOW``, and every callback -- the input callbacks,
+the output step, the watchdog timer, the ``~/reset`` service and rclpy's parameter services --
+in one of the last ``ALL_CALLBACKS_WINDOW`` (:mod:`slip_estimator.ros.node`). Each
+``/diagnostics`` status the node publishes carries ``callback_p50_ms``, ``callback_p99_ms``,
+``callback_max_ms`` and ``callback_window`` (IMU callbacks) and ``all_callbacks_p50_ms``,
+``all_callbacks_p99_ms``, ``all_callbacks_max_ms`` and ``all_callbacks_window`` (every
+callback); ``unknown`` before the first. ``slip-estimator bench --only live`` reads both.
+
+Shutdown
+--------
+Ctrl-C (SIGINT) or SIGTERM ends the spin, or the start when it comes before the node is
+built, with status 0 (SIGTERM shuts rclpy's context down from its signal thread, under a
+half-built node or a running callback: the call that then fails is the stop, not an error;
+nothing is published once the context is down). The node then destroys its DDS
+entities within ``TEARDOWN_TIMEOUT_S``. Fast DDS 2.14 (Jazzy) can deadlock in that teardown
+when a peer's endpoints leave at the same moment (the participant's ``set_listener`` waits for
+a discovery callback that waits for a lock the teardown holds; seen about once in 80 stops of
+a test whose client node left just before the SIGINT). The wait holds the GIL, so the guard is
+``faulthandler``'s C watchdog: past the timeout it prints every thread's stack and exits with
+status 1 instead of hanging until launch escalates to SIGKILL.
+"""
 from __future__ import annotations
 
 import faulthandler
+import gc
 import time
+from collections.abc import Callable
 from typing import Any
 
+import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -16,16 +74,18 @@ SPIN_ONCE_TIMEOUT_S = 0.5
 
 def spin(node: Any) -> None:
     """Spin ``node`` (a :class:`~slip_estimator.ros.node.SlipEstimatorNode`: it counts
-    ``input_callbacks`` and has ``input_batch_period_s``) until rclpy shuts down: the events
-    executor in a ``spin_once`` loop (see the node's Receiving section), or the
-    single-threaded executor where there is none; each round handles every input message
-    that is ready, then sleeps ``node.input_batch_period_s``."""
+    ``input_callbacks``, has ``input_batch_period_s``, queues its outputs while
+    ``output_steps`` and publishes them in ``publish_outputs``) until rclpy shuts down, in
+    rounds (see the module's Spin loop section)."""
     try:
         from rclpy.experimental import EventsExecutor
         executor = EventsExecutor(context=node.context)
     except (ImportError, AttributeError):
         executor = SingleThreadedExecutor(context=node.context)
     executor.add_node(node)
+    node.output_steps = True
+    gc.collect()
+    gc.freeze()
     try:
         while node.context.ok():
             executor.spin_once(timeout_sec=SPIN_ONCE_TIMEOUT_S)  # the first (waits for it)
@@ -33,10 +93,50 @@ def spin(node: Any) -> None:
             while handled != node.input_callbacks:  # the rest, until none was ready
                 handled = node.input_callbacks
                 executor.spin_once(timeout_sec=0.0)
+            node.publish_outputs()
             if node.input_batch_period_s:
                 time.sleep(node.input_batch_period_s)
     finally:
+        node.output_steps = False
         executor.shutdown(timeout_sec=1.0)
+
+
+class CallbackDurations:
+    """Wall durations of the last ``window`` callbacks, s, in a ring buffer (a numpy array: the
+    percentiles read it in place, no copy of a 15000-entry deque into an array per report)."""
+
+    __slots__ = ('_s', 'count')
+
+    def __init__(self, window: int) -> None:
+        self._s = np.zeros(window)
+        self.count = 0
+        """Callbacks timed so far."""
+
+    def add(self, seconds: float) -> None:
+        """Record one callback's duration."""
+        self._s[self.count % len(self._s)] = seconds
+        self.count += 1
+
+    def summary_ms(self) -> list[str]:
+        """p50, p99 and max over the window in ms ('%.3f'; 'unknown' before the first
+        callback) and the number of callbacks in the window."""
+        n = min(self.count, len(self._s))
+        if not n:
+            return ['unknown'] * 3 + ['0']
+        ms = self._s[:n] * 1e3
+        p50, p99 = np.percentile(ms, (50.0, 99.0))
+        return [f'{p50:.3f}', f'{p99:.3f}', f'{ms.max():.3f}', str(n)]
+
+
+def timed(callback: Callable[..., Any], durations: CallbackDurations) -> Callable[..., Any]:
+    """``callback`` with its wall duration recorded in ``durations`` (timers, services)."""
+    def run(*args: Any) -> Any:
+        t0 = time.perf_counter()
+        try:
+            return callback(*args)
+        finally:
+            durations.add(time.perf_counter() - t0)
+    return run
 
 
 TEARDOWN_TIMEOUT_S = 4.0

@@ -49,6 +49,9 @@ def test_bench_all_sections(tmp_path, capsys):
         assert 0 < live['imu_received'] <= live['imu_sent'] == sent
         assert 0 <= live['wheel_received'] <= live['wheel_sent']
         assert live['callback_p50_ms'] <= live['callback_p99_ms'] <= live['callback_max_ms']
+        assert (live['all_callbacks_p50_ms'] <= live['all_callbacks_p99_ms']
+                <= live['all_callbacks_max_ms'])
+        assert live['all_callbacks_window'] > live['callback_window']
         assert live['end_to_end']['n'] > 0 and live['end_to_end']['p50_ms'] > 0
         assert live['node_cpu_percent_of_one_core'] >= 0
 

@@ -87,6 +87,13 @@ def ros_context(monkeypatch):
         rclpy.try_shutdown(context=context)
 
 
+def n_odometry_played(messages: list) -> int:
+    """Odometry messages at 20 Hz of data time over the IMU stamps of ``messages`` (an upper
+    bound of what the node publishes: it starts once aligned)."""
+    stamps = [log_ns for topic, _, log_ns in messages if topic == '/imu/data']
+    return int((stamps[-1] - stamps[0]) * 1e-9 * 20)
+
+
 def test_node_over_dds(ros_context, tmp_path):
     params_file = tmp_path / 'params.yaml'
     save_params(synthetic_params(), params_file)
@@ -159,6 +166,14 @@ def test_node_over_dds(ros_context, tmp_path):
         assert counters['/imu/data received'] == str(n_imu), counters  # nothing lost
         assert counters['/joint_states received'] == str(n_wheel), counters
         assert counters['/imu/data stamp_gaps'] == '0'
+        # Every callback is timed: the IMU callbacks, and in the all-callbacks window also the
+        # wheel callbacks, the output steps (one per odometry message at least) and the timer.
+        assert int(counters['callback_window']) == n_imu
+        assert int(counters['all_callbacks_window']) > n_imu + n_wheel + n_odometry_played(
+            messages) // 2, counters
+        for prefix in ('callback', 'all_callbacks'):
+            p50, p99, top = (float(counters[f'{prefix}_{k}_ms']) for k in ('p50', 'p99', 'max'))
+            assert 0 < p50 <= p99 <= top, counters
 
         # Runtime parameter changes: invalid rejected with the range, valid accepted.
         client = AsyncParameterClient(node, 'slip_estimator')
