@@ -12,8 +12,9 @@ from slip_estimator.core import frames, kalman
 from slip_estimator.core.error_model import curvilinear_to_ned
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import LocalEnu, Planet, radii_of_curvature
-from slip_estimator.core.slip import (p_beyond_medium_bound, p_medium_or_worse, slip_class,
-                                      slip_ratio, slip_ratio_std)
+from slip_estimator.core.slip import (p_beyond_medium_bound, slip_class, slip_ratio,
+                                      slip_ratio_std)
+from slip_estimator.core.slip_confidence import Confidence, mixture_std, p_medium_mixture
 from slip_estimator.core.state import BG, VEL, NavState
 from slip_estimator.core.types import OdometryEstimate, SlipEstimate, WheelSample
 
@@ -48,14 +49,18 @@ def slip_before_alignment(wheel: WheelSample, p: Params, imu_steady: bool) -> Sl
 def slip_estimate(wheel: WheelSample, v_body_mps: float, yaw_rate_b_rps: float,
                   var_v_mps2: float, p: Params, stationary: bool,
                   track_width_m: float, rim_timing_var_mps2: float = 0.0,
-                  held_slip: float | None = None) -> SlipEstimate:
+                  held_slip: float | None = None,
+                  confidence: Confidence = Confidence()) -> SlipEstimate:
     """The slip of one wheel sample (paper eq. 1) against the body forward speed
     ``v_body_mps`` (variance ``var_v_mps2``) at its instant; per side with the effective
     ``track_width_m`` and the yaw rate (FRD) when the sample has sides.
     ``rim_timing_var_mps2``: the rim speed's variance from its timing against the INS (beyond
     the declared wheel noise; :meth:`WheelAid.rim_timing_var_mps2`); ``held_slip``: the slip
     model's hold (:attr:`WheelAid.held_slip`). The class is the slip's unless the reading does
-    not resolve it (:func:`_resolved`): then low, marked unresolved."""
+    not resolve it (:func:`_resolved`, on the filter's 1-sigma): then low, marked unresolved.
+    ``confidence``: what the published 1-sigma and P(medium+) add to the filter's
+    (:mod:`~slip_estimator.core.slip_confidence`: the change the step test cannot see, the
+    probability that the reading is wrong); the class does not use them."""
     var_w = p.wheel_speed_std_mps ** 2 + rim_timing_var_mps2
     w = wheel.rim_speed_mps
     # "Not moving" when the rim speed is below the threshold and the body speed is not
@@ -77,11 +82,24 @@ def slip_estimate(wheel: WheelSample, v_body_mps: float, yaw_rate_b_rps: float,
         sides = [slip_ratio(v_body_mps + half, wheel.rim_speed_left_mps),
                  slip_ratio(v_body_mps - half, wheel.rim_speed_right_mps)]
     cls = slip_class(s, moving)
-    p_med = p_medium_or_worse(s, s_std) if moving else 0.0
     resolved = cls < 2 or _resolved(v_body_mps, w, s, s_std, rim_timing_var_mps2, held_slip)
-    return SlipEstimate(wheel.stamp_ns, s, s_std, cls if resolved else 1, v_body_mps,
+    s_std_pub, p_med = _published(v_body_mps, w, s, var_v_mps2, var_w, confidence) \
+        if moving else (0.0, 0.0)
+    return SlipEstimate(wheel.stamp_ns, s, s_std_pub, cls if resolved else 1, v_body_mps,
                         math.sqrt(max(var_v_mps2, 0.0)), w, sides[0], sides[1], p_med,
                         resolved)
+
+
+def _published(v_body_mps: float, w: float, s: float, var_v_mps2: float, var_w: float,
+               c: Confidence) -> tuple[float, float]:
+    """The published 1-sigma and P(medium+) of a moving reading ``s`` (body speed
+    ``v_body_mps``, variance ``var_v_mps2``; rim speed ``w``, variance ``var_w``): the body
+    speed also within the change the step test cannot see; both of the mixture of the reading
+    and, where it is wrong, the ground's slip ``c.s_alt`` read as well
+    (:mod:`~slip_estimator.core.slip_confidence`)."""
+    s_std = slip_ratio_std(v_body_mps, w, var_v_mps2 + c.resolution_var_mps2, var_w)
+    return (mixture_std(s, s_std, c.p_wrong, c.s_alt),
+            p_medium_mixture(s, s_std, c.p_wrong, c.s_alt))
 
 
 def _resolved(v_body_mps: float, w: float, s: float, s_std: float, rim_timing_var_mps2: float,

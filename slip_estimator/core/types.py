@@ -85,14 +85,16 @@ class SlipEstimate:
     ----------
     stamp_ns : the wheel sample time the estimate refers to, ns.
     slip_ratio : s in [-1, 1]; NaN when unknown (then ``slip_class`` is -1).
-    slip_ratio_std : 1-sigma of s from the filter velocity covariance and wheel noise.
+    slip_ratio_std : 1-sigma of s from the filter velocity covariance, the wheel noise and the
+        slip change the step test cannot see (:mod:`slip_estimator.core.slip_confidence`).
     slip_class : 0..4, index into SLIP_CLASS_NAMES, or -1 when unknown.
     body_speed_mps : forward body velocity v_x at the wheel contact point, from the INS, m/s.
     body_speed_std_mps : its 1-sigma, m/s.
     wheel_speed_mps : rim speed r*omega, m/s.
     slip_ratio_left, slip_ratio_right : per-side slip when the sides are known, else None.
-    p_medium_or_worse : probability that the slip is medium or worse, from the slip ratio and
-        its 1-sigma (:func:`slip_estimator.core.slip.p_medium_or_worse`); NaN when unknown.
+    p_medium_or_worse : probability that the slip is medium or worse (beyond 0.2 on the
+        reading's side), allowing for a wrong reading
+        (:mod:`slip_estimator.core.slip_confidence`); NaN when unknown.
     resolved : the class is one the slip and its 1-sigma resolve; False where a medium-or-worse
         reading is within its error (or the rim's timing) of the low class and no resolved
         hold supports it (then ``slip_class`` is low).
