@@ -21,12 +21,11 @@ from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
 from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint, WheelQueue
 from slip_estimator.core.measurements import ForwardSpeed
-from slip_estimator.core.odometry_guard import OdometryGuard, decide, ins_speed_error_var
+from slip_estimator.core.odometry_guard import OdometryGuard
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, LocalEnu
 from slip_estimator.core.slip_model.aid_decision import AidDecision
-from slip_estimator.core.slip_confidence import Confidence, ReadingRecord
-from slip_estimator.core.slip_model.model import CHANGE_LOOKBACK_S, Mode
+from slip_estimator.core.slip_model.model import CHANGE_LOOKBACK_S
 from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor
@@ -79,7 +78,6 @@ class SlipEstimator:
         self.wheel_aid = WheelAid(p)
         self.slip_model = self.wheel_aid.slip_model
         self.odometry_guard = OdometryGuard()
-        self.readings = ReadingRecord()
 
     @property
     def params(self) -> Params:
@@ -256,25 +254,13 @@ class SlipEstimator:
         still = self.wheel_aid.stopping(wheel) or self.updater.is_stationary
         est = outputs.slip_estimate(wheel, at.v_fwd_mps, at.yaw_rate_b_rps, var_v,
                                     self.params, still, self.track.width_m, rim_var,
-                                    self.wheel_aid.held_slip, self._confidence(wheel, turning))
+                                    self.wheel_aid.held_slip,
+                                    self.wheel_aid.confidence(wheel.rim_speed_mps, turning))
         self._apply_aid(self.wheel_aid.decide(
             wheel, at, est, st.C_b_n, turning, self.filter.tilt_std_rad(),
             self.filter.forward_reading_var_mps2(SCALES_S), var_ins), at)
-        chain = self.slip_model.chain  # a hold measured from rest: no change chained to it
-        self.odometry_guard.wheel(decide(
-            est, ins_speed_error_var(self.slip_model.spread_var, SCALES_S),
-            not chain.assumed and chain.chain_var == 0.0, self.params.slip_change_sigma))
+        self.odometry_guard.wheel(self.wheel_aid.odometry_decision(est))
         return est
-
-    def _confidence(self, wheel: WheelSample, turning: bool) -> Confidence:
-        """What the published slip adds to the filter's reading (nothing without the hold
-        mode: no step test, no readings)."""
-        held, model = self.wheel_aid.held_slip, self.slip_model
-        if self.params.wheel_aid != 'hold':
-            return Confidence()
-        self.readings.observe(held, model.baseline, model.mode is Mode.REST)
-        return self.readings.confidence(held, model.baseline,
-                                        model.body_change_mps(wheel.rim_speed_mps, turning))
 
     def _apply_aid(self, d: AidDecision | None, at: HistoryPoint) -> None:
         """Carry out a wheel-aid decision (``at``: the history at the wheel sample's time)."""

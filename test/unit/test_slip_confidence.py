@@ -110,8 +110,9 @@ def test_published_sigma_and_p_add_to_the_reading_without_moving_its_class():
 class _Plain(SlipEstimator):
     """The estimator publishing the filter's reading only."""
 
-    def _confidence(self, wheel, turning):
-        return Confidence()
+    def _reset_filter(self):
+        super()._reset_filter()
+        self.wheel_aid.confidence = lambda rim_speed_mps, turning: Confidence()
 
 
 def test_the_confidence_changes_what_is_published_about_the_slip_only():

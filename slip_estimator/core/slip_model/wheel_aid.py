@@ -15,9 +15,12 @@ import math
 import numpy as np
 
 from slip_estimator.core.history import HistoryPoint
+from slip_estimator.core.odometry_guard import GuardDecision, decide, ins_speed_error_var
 from slip_estimator.core.params import Params
+from slip_estimator.core.slip_confidence import Confidence, ReadingRecord
 from slip_estimator.core.slip_model.aid_decision import AidDecision
-from slip_estimator.core.slip_model.model import SlipModel
+from slip_estimator.core.slip_model.model import Mode, SlipModel
+from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.types import SlipEstimate, WheelSample
 
 _RECOVERY_SLIP_STD = 0.1  # zero slip assumed while recovering: 10 % of the rim speed, 1-sigma
@@ -33,7 +36,9 @@ class WheelAid:
         self._aid_std_mps = own.wheel_aid_std_mps
         self._latency_s = params.wheel_latency_s
         self._last: tuple[int, float] | None = None  # (stamp ns, rim speed m/s) of the last sample
+        self._resolving_sigmas = own.slip_change_sigma
         self.slip_model = SlipModel(params)
+        self.readings = ReadingRecord()
 
     def stopping(self, wheel: WheelSample) -> bool:
         """The wheels stopped less than ``STOP_S`` ago, or stop by the sample's stamp (in any
@@ -93,6 +98,26 @@ class WheelAid:
         if self._mode != 'hold':
             return 0.0
         return self.slip_model.held_speed_var_mps2(rim_speed_mps)
+
+    def confidence(self, rim_speed_mps: float, turning: bool) -> Confidence:
+        """What the published slip adds to the filter's reading (:mod:`~slip_estimator.core.
+        slip_confidence`; call once per evaluated wheel sample; nothing without the hold
+        mode: no step test, no readings)."""
+        if self._mode != 'hold':
+            return Confidence()
+        held, model = self.held_slip, self.slip_model
+        self.readings.observe(held, model.baseline, model.mode is Mode.REST)
+        return self.readings.confidence(held, model.baseline,
+                                        model.body_change_mps(rim_speed_mps, turning))
+
+    def odometry_decision(self, est: SlipEstimate) -> GuardDecision:
+        """Whether the published odometry falls back to wheels + gyro at this sample
+        (:func:`~slip_estimator.core.odometry_guard.decide` on the slip model's INS spread; a
+        hold measured from rest with no change chained to it is anchored)."""
+        model = self.slip_model
+        chain = model.chain
+        return decide(est, ins_speed_error_var(model.spread_var, SCALES_S),
+                      not chain.assumed and chain.chain_var == 0.0, self._resolving_sigmas)
 
     def decide(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate,
                C_b_n: np.ndarray, turning: bool, tilt_std_rad: float = 0.0,
