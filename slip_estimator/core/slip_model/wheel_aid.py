@@ -112,12 +112,14 @@ class WheelAid:
 
     def odometry_decision(self, est: SlipEstimate) -> GuardDecision:
         """Whether the published odometry falls back to wheels + gyro at this sample
-        (:func:`~slip_estimator.core.odometry_guard.decide` on the slip model's INS spread; a
-        hold measured from rest with no change chained to it is anchored)."""
+        (:func:`~slip_estimator.core.odometry_guard.decide` on the slip model's INS spread,
+        carrying its hold; a hold measured from rest with no change chained to it is
+        anchored)."""
         model = self.slip_model
         chain = model.chain
         return decide(est, ins_speed_error_var(model.spread_var, SCALES_S),
-                      not chain.assumed and chain.chain_var == 0.0, self._resolving_sigmas)
+                      not chain.assumed and chain.chain_var == 0.0, self._resolving_sigmas,
+                      self.held_slip)
 
     def decide(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate,
                C_b_n: np.ndarray, turning: bool, tilt_std_rad: float = 0.0,
