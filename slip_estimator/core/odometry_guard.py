@@ -63,8 +63,8 @@ class GuardDecision:
     fallback: bool
     """True: the published track advances as wheels + gyro"""
     rim_speed_mps: float
-    """the speed the fallback advances at: the rim speed through the slip model's hold (the
-    slip it resolved, the ground's baseline or zero), m/s"""
+    """the speed the fallback advances at: the rim speed, through the ground's slip where one
+    was measured from rest, m/s"""
     ins_error_mps: float
     """the INS's forward-speed error the verdict rests on (:func:`ins_speed_error_var`)"""
 
@@ -77,9 +77,9 @@ def decide(est: SlipEstimate, ins_error_var_mps2: float, anchored: bool,
     where the slip was measured from rest (``anchored``: on a stop's zero velocity, where the
     free INS is far better than its error over a measuring span) and the INS reads the body's
     speed beyond ``resolving_sigmas`` of that error from the rim speed: wheels spinning on a
-    body that stayed stuck. The fallback carries the slip model's hold ``held_slip`` (None:
-    the raw rim speed): on the real test17run the raw rim speed read the body 0.045 m/s RMS
-    off against the fused 0.039, as its ground slips by about 0.05."""
+    body that stayed stuck. The fallback carries ``held_slip``, the ground's slip measured
+    from rest (None: the raw rim speed): on the real test17run the raw rim speed read the body
+    0.045 m/s RMS off against the fused 0.039, as its ground slips by about 0.05."""
     w = est.wheel_speed_mps
     speed = w if held_slip is None else w * speed_ratio(held_slip)
     err = math.sqrt(max(ins_error_var_mps2, 0.0))

@@ -50,6 +50,17 @@ def test_falls_back_only_where_a_slip_cannot_be_placed_in_the_low_class():
     assert d == GuardDecision(True, True, 1.0, pytest.approx(0.16))
 
 
+def test_the_fallback_carries_the_ground_slip_it_is_given():
+    """With the ground's slip measured from rest (0.05, or a run-ahead of -0.05) the fallback
+    advances at the rim speed through it: 0.95 and 1/0.95 m/s at 1 m/s; without, the rim."""
+    coarse = 0.16 ** 2
+    assert decide(_slip(1.0, 0.9), coarse, False, 3.5, 0.05).rim_speed_mps == \
+        pytest.approx(0.95)
+    assert decide(_slip(1.0, 0.9), coarse, False, 3.5, -0.05).rim_speed_mps == \
+        pytest.approx(1.0 / 0.95)
+    assert decide(_slip(1.0, 0.9), coarse, False, 3.5).rim_speed_mps == 1.0
+
+
 def test_never_fallen_back_publishes_the_fused_solution_itself():
     guard = OdometryGuard()
     guard.wheel(decide(_slip(1.0, 0.98), 0.01 ** 2, False, 3.5))

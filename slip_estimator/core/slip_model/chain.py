@@ -17,7 +17,7 @@ the next until a stop or a return to the ground measured after the last start:
 * **run-ahead.** One that no slope explains (:mod:`.run_ahead`) is the INS:
   back to the baseline;
 * **assumed.** After a start in motion nothing measured the ground: a slip the INS could not
-  place is assumed (zero, the wheels' speed) and carries ``_ASSUMED_SLIP_STD``; an INS too
+  place is assumed (zero, the wheels' speed) and carries ``ASSUMED_SLIP_STD``; an INS too
   coarse to place a slip within the low class takes zero as its baseline until a stop.
 
 Only the standard library is used.
@@ -31,7 +31,7 @@ from slip_estimator.core.params import Params
 _COARSE_INS_FRACTION = 0.15
 """An INS whose speed over a measurement span scatters by more than this fraction of the rim
 speed cannot place a slip within the low class (0.2 wide)."""
-_ASSUMED_SLIP_STD = 0.1
+ASSUMED_SLIP_STD = 0.1
 """1-sigma of a slip nothing measured (a start in motion, before a stop): half the low class."""
 SLOPE_RAD = math.radians(4.0)
 """Another slope: gravity along it (sin 4 deg = 0.07 of the weight) is of the order of soft
@@ -138,10 +138,10 @@ class SlipChain:
 
     def held_speed_var_mps2(self, w: float, spread_var: float) -> float:
         """Body-speed variance of the held slip at rim speed ``w``, m^2/s^2: the INS spread of
-        a measurement plus the chain since the last anchor; ``_ASSUMED_SLIP_STD`` of ``w`` if
+        a measurement plus the chain since the last anchor; ``ASSUMED_SLIP_STD`` of ``w`` if
         nothing measured it (a start in motion), or the chain of changes measured from there
         if wider (on the 30-Hz consumer robot four such changes ratcheted the hold from 0 to
         0.46, truth 0.11, while the published sigma stayed at 0.10)."""
         if self.assumed:
-            return max((_ASSUMED_SLIP_STD * w) ** 2, self.chain_var)
+            return max((ASSUMED_SLIP_STD * w) ** 2, self.chain_var)
         return spread_var + self.chain_var

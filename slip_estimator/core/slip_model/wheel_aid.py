@@ -19,6 +19,7 @@ from slip_estimator.core.odometry_guard import GuardDecision, decide, ins_speed_
 from slip_estimator.core.params import Params
 from slip_estimator.core.slip_confidence import Confidence, ReadingRecord
 from slip_estimator.core.slip_model.aid_decision import AidDecision
+from slip_estimator.core.slip_model.chain import ASSUMED_SLIP_STD
 from slip_estimator.core.slip_model.model import Mode, SlipModel
 from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.types import SlipEstimate, WheelSample
@@ -112,14 +113,19 @@ class WheelAid:
 
     def odometry_decision(self, est: SlipEstimate) -> GuardDecision:
         """Whether the published odometry falls back to wheels + gyro at this sample
-        (:func:`~slip_estimator.core.odometry_guard.decide` on the slip model's INS spread,
-        carrying its hold; a hold measured from rest with no change chained to it is
-        anchored)."""
+        (:func:`~slip_estimator.core.odometry_guard.decide` on the slip model's INS spread; a
+        hold measured from rest with no change chained to it is anchored, and only such a
+        hold, within half the low class (``ASSUMED_SLIP_STD``), is carried by the fallback: a
+        chained one on an INS that cannot resolve slip is no better than the raw rim speed,
+        and a wrong one far worse (a consumer IMU's no-slip drive ended 4.8 m off carrying
+        its anchored holds, 2.8 m at the raw rim speed; test17run's ground slips by ~0.05,
+        and carrying it takes the plain forward-speed RMSE 0.0444 -> 0.0403 m/s))."""
         model = self.slip_model
         chain = model.chain
-        return decide(est, ins_speed_error_var(model.spread_var, SCALES_S),
-                      not chain.assumed and chain.chain_var == 0.0, self._resolving_sigmas,
-                      self.held_slip)
+        anchored = not chain.assumed and chain.chain_var == 0.0
+        return decide(est, ins_speed_error_var(model.spread_var, SCALES_S), anchored,
+                      self._resolving_sigmas, self.held_slip
+                      if anchored and abs(self.held_slip or 0.0) <= ASSUMED_SLIP_STD else None)
 
     def decide(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate,
                C_b_n: np.ndarray, turning: bool, tilt_std_rad: float = 0.0,
