@@ -31,9 +31,9 @@ Where it fails (measured; docs/limits.md, docs/status.md, docs/sim-vs-real.md)
 * A slip changing over tens of seconds is absorbed as INS drift; a change below
   ``slip_change_fraction`` of the rim speed is not seen; a wheel-radius error is a constant slip.
 * False alarms (medium or worse where the ground does not slip, share of moving time): real
-  test17run 0.2 %, s5t1 1.3 % as recorded; 2-4 % on the simulated 30-Hz consumer robots
-  without slip; on the consumer robot with slip patches 7-18 % (a wrong hold after a stop,
-  single readings during measurements). On a consumer IMU body-side slip is below what the
+  test17run 0.2 %, s5t1 1.3 % as recorded; 2.7-3.0 % on the simulated 30-Hz consumer robots
+  with the vibrating grade; 9.0 % on the plain consumer robot with slip patches (4 seeds: a
+  wrong hold after a stop, single readings during measurements). On a consumer IMU body-side slip is below what the
   IMU resolves: the slip model then holds the wheels' speed, and the published odometry
   falls back to wheels + gyro (``core.odometry_guard``).
 
