@@ -136,11 +136,10 @@ class ForwardSpeedHistory:
         while rows[0][0] < horizon:  # never empties: the newest entry is not older
             rows.popleft()
 
-    def at(self, stamp_ns: int) -> HistoryPoint | None:
-        """The history at ``stamp_ns`` by linear interpolation; None outside the horizon."""
+    def _row_before(self, stamp_ns: int) -> int:
+        """Index of the last row at or before ``stamp_ns`` (within the recorded span; bisection
+        on the stamps), the first row's when only one is at or before it."""
         h = self._rows
-        if not h or stamp_ns < h[0][0] or stamp_ns > h[-1][0]:
-            return None
         lo, hi = 0, len(h) - 1
         while hi - lo > 1:
             mid = (lo + hi) // 2
@@ -148,6 +147,15 @@ class ForwardSpeedHistory:
                 lo = mid
             else:
                 hi = mid
+        return lo
+
+    def at(self, stamp_ns: int) -> HistoryPoint | None:
+        """The history at ``stamp_ns`` by linear interpolation; None outside the horizon."""
+        h = self._rows
+        if not h or stamp_ns < h[0][0] or stamp_ns > h[-1][0]:
+            return None
+        lo = self._row_before(stamp_ns)
+        hi = min(lo + 1, len(h) - 1)
         t0, v0, y0, f0, a0 = h[lo]
         t1, v1, y1, f1, a1 = h[hi]
         a = 0.0 if t1 == t0 else (stamp_ns - t0) / (t1 - t0)
@@ -168,13 +176,7 @@ class ForwardSpeedHistory:
         start_ns, end_ns = max(start_ns, h[0][0]), min(end_ns, h[-1][0])
         if end_ns <= start_ns:
             return self.at(start_ns).yaw_rate_b_rps
-        lo, hi = 0, len(h) - 1  # lo: the last row at or before start_ns
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if h[mid][0] <= start_ns:
-                lo = mid
-            else:
-                hi = mid
+        lo = self._row_before(start_ns)
         area = 0.0  # trapezoids of the linear interpolant, from start_ns to end_ns
         t_prev, y_prev = start_ns, self.at(start_ns).yaw_rate_b_rps
         for t, _, y, _, _ in islice(h, lo + 1, None):
