@@ -339,8 +339,8 @@ def odometry_matrices(est: SlipEstimator):
     idx = np.r_[VEL, BG]
     twist = M @ est.filter.P[np.ix_(idx, idx)] @ M.T
     twist[3:, 3:] += np.eye(3) * est.params.gyro_noise_density_rps_rthz ** 2 / est.imu_rate.dt_s
-    return (p_o, quaternion_of(C_base_odom), frames.C_FLU_FRD @ v_b, frames.C_FLU_FRD @ w_b, kalman.symmetrize(pose),
-            kalman.symmetrize(twist))
+    return (p_o, quaternion_of(C_base_odom), frames.C_FLU_FRD @ v_b, frames.C_FLU_FRD @ w_b,
+            kalman.symmetrize(pose), kalman.symmetrize(twist))
 
 
 def test_odometry_equals_the_matrix_formulas():

@@ -33,9 +33,9 @@ Where it fails (measured; docs/limits.md, docs/status.md, docs/sim-vs-real.md)
 * False alarms (medium or worse where the ground does not slip, share of moving time): real
   test17run 0.2 %, s5t1 1.3 % as recorded; 2.7-3.0 % on the simulated 30-Hz consumer robots
   with the vibrating grade; 9.0 % on the plain consumer robot with slip patches (4 seeds: a
-  wrong hold after a stop, single readings during measurements). On a consumer IMU body-side slip is below what the
-  IMU resolves: the slip model then holds the wheels' speed, and the published odometry
-  falls back to wheels + gyro (``core.odometry_guard``).
+  wrong hold after a stop, single readings during measurements). On a consumer IMU
+  body-side slip is below what the IMU resolves: the slip model then holds the wheels'
+  speed, and the published odometry falls back to wheels + gyro (``core.odometry_guard``).
 
 Its parts, in the order a wheel sample meets them
 -------------------------------------------------

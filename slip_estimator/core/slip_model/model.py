@@ -208,8 +208,7 @@ class SlipModel:
         # body-side change to the free INS's predicted drift over its span (shortest scale),
         # a start from rest to the speed's variance at the end of its measurement.
         drifting = self._measurement.drifting()
-        body_span_s = self._measurement.body_span_s() \
-            if self._reading_var and coarse_ins(self._reading_var[0], w) else None
+        body_span_s = self._measurement.body_span_s() if self._predicted_coarse(w) else None
         coarse_start = self._from_rest and coarse_ins(self._speed_var, w)
         measured = self._measurement.slip(self._previous, self.params.slip_continuity_sigma,
                                           self.aid_noise_var, self.spread_var[-1],
@@ -255,6 +254,11 @@ class SlipModel:
             return self.step_test.spread_var
         return [max(a, b) for a, b in zip(self.step_test.spread_var, floor)]
 
+    def _predicted_coarse(self, w: float) -> bool:
+        """The filter predicts its free INS over the shortest step-test scale too coarse to
+        place a slip within the low class at rim speed ``w`` (:func:`coarse_ins`)."""
+        return bool(self._reading_var) and coarse_ins(self._reading_var[0], w)
+
     @property
     def rim_speed_mps(self) -> float | None:
         """The rim speed of the last moving wheel sample, m/s (None at rest)."""
@@ -291,9 +295,11 @@ class SlipModel:
         # consistency noise explains too (a consumer IMU's aided speed scatters by 0.13 m/s:
         # a rim changing speed showed 31 "changes" per drive on ground that never slipped,
         # each leaving the INS free for a second).
-        coarse = bool(self._reading_var) and coarse_ins(self._reading_var[0], w)
-        if gap > max(self.wheel_change_mps(w), self.params.slip_change_sigma
-                     * math.sqrt(self.aid_noise_var) if coarse else 0.0) and \
+        threshold = self.wheel_change_mps(w)
+        if self._predicted_coarse(w):
+            threshold = max(threshold,
+                            self.params.slip_change_sigma * math.sqrt(self.aid_noise_var))
+        if gap > threshold and \
                 self._rim.moved_mps(w) * g > 0.5 * gap:
             if self._change_since_ns is None:
                 self._change_since_ns = t_ns
@@ -327,8 +333,8 @@ class SlipModel:
                 # the onset are the old slip's and are taken back; after a start in motion
                 # they are still levelling the INS (a 30-Hz consumer IMU lost 1-2.5 deg).
                 take_back = before.last_ns if self.baseline is not None else None
-                self._start_change(Anchor(before.z_mps, before.v_free_mps, True, t_ns=before.t_ns),
-                                   'body')
+                self._start_change(
+                    Anchor(before.z_mps, before.v_free_mps, True, t_ns=before.t_ns), 'body')
                 # Re-anchor now on continuity (the aid had been pulling the INS back onto the
                 # old slip): the held speed before the onset plus the free speed change since,
                 # without the aid corrections made since the onset. The mean free speed is the
