@@ -42,9 +42,11 @@ class ResidualMonitor:
         """Add the normalised innovation of one update (one component per call or a vector
         whose components are averaged)."""
         # Scalars in Python floats: this runs on every update (most have one or two rows).
-        var = np.diag(S).tolist()
-        z = [nu / math.sqrt(max(v, 1e-300))
-             for nu, v in zip(np.asarray(innovation, dtype=float).tolist(), var)]
+        self._add(channel, np.asarray(innovation, dtype=float).tolist(), np.diag(S).tolist())
+
+    def _add(self, channel: str, innovation: list[float], var: list[float]) -> None:
+        """:meth:`add` of the innovation and the diagonal of S as floats."""
+        z = [nu / math.sqrt(max(v, 1e-300)) for nu, v in zip(innovation, var)]
         w = self.weight if self.count[channel] else 1.0
         self.mean[channel] += w * (sum(z) / len(z) - self.mean[channel])
         ms = sum(x * x for x in z) / len(z)
@@ -58,8 +60,10 @@ class ResidualMonitor:
         if channels is None:
             self.add(name, innovation, S)
             return
+        # The rows' floats taken once (not two array slices and conversions per row).
+        nu, var = np.asarray(innovation, dtype=float).tolist(), np.diag(S).tolist()
         for i, channel in enumerate(channels):
-            self.add(channel, innovation[i:i + 1], S[i:i + 1, i:i + 1])
+            self._add(channel, nu[i:i + 1], var[i:i + 1])
 
     def add_held_slip(self, s_hold: float) -> None:
         """A slip value the hold-mode aid settled on during ordinary (low-slip) driving."""

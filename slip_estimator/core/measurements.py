@@ -18,6 +18,10 @@ from slip_estimator.core.planet import Planet, earth_rate_n
 from slip_estimator.core.state import ATT, BG, N_ERR, VEL, NavState
 
 
+_MINUS_EYE_3 = -np.eye(3)
+_MINUS_EYE_3.flags.writeable = False
+
+
 class ZeroVelocity:
     """ZUPT: the IMU point is at rest, ``v_eb_n = 0`` (paper eq. 17-18)."""
 
@@ -38,7 +42,7 @@ class ZeroVelocity:
     def jacobian(self, state: NavState) -> np.ndarray:
         """``H = (0, -I, 0, 0, 0)``."""
         H = np.zeros((3, N_ERR))
-        H[:, VEL] = -np.eye(3)
+        H[:, VEL] = _MINUS_EYE_3
         return H
 
 
@@ -83,7 +87,7 @@ class ZeroAngularRate:
         """``H = (C_n_b [omega_ie_n x], 0, 0, 0, -I)`` (paper eq. 20 plus the planet rate)."""
         H = np.zeros((3, N_ERR))
         H[:, ATT] = state.C_b_n.T @ skew(earth_rate_n(self.planet, state.llh[0]))
-        H[:, BG] = -np.eye(3)
+        H[:, BG] = _MINUS_EYE_3
         return H
 
 
@@ -136,6 +140,10 @@ class NonHolonomic:
         H[:, ATT] = -C_n_b @ skew(state.v_eb_n)
         H[:, VEL] = -C_n_b
         H[:, BG] = self._skew_l
+        # Rows as a slice where they are consecutive (every caller's): a view, the same
+        # values, without the fancy index (1.5 us).
+        if rows[-1] - rows[0] == len(rows) - 1:
+            return H[rows[0]:rows[-1] + 1]
         return H[list(rows)]
 
 
