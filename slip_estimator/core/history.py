@@ -25,7 +25,6 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Iterator
-from itertools import islice
 from typing import NamedTuple
 
 import numpy as np
@@ -179,7 +178,9 @@ class ForwardSpeedHistory:
         lo = self._row_before(start_ns)
         area = 0.0  # trapezoids of the linear interpolant, from start_ns to end_ns
         t_prev, y_prev = start_ns, self.at(start_ns).yaw_rate_b_rps
-        for t, _, y, _, _ in islice(h, lo + 1, None):
+        # By index: a deque indexes near its ends in a step, islice walked all the older rows.
+        for i in range(lo + 1, len(h)):
+            t, _, y, _, _ = h[i]
             if t >= end_ns:
                 break
             area += 0.5 * (y + y_prev) * (t - t_prev)
