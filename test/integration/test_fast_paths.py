@@ -5,7 +5,8 @@
   tolerances below.
 * Every function rewritten for speed against the literal formulas it replaced: bit-identical
   where the rewrite performs the same floating-point operations (strapdown step, F, Q, window
-  variance), to round-off where it does not (``odometry()`` on floats, 1e-12 relative).
+  variance, Kalman steps, measurement Jacobians, residual monitor, the lag monitor's
+  correlation), to round-off where it does not (``odometry()`` on floats, 1e-12 relative).
 * The NaN guard gives the same verdicts as the recursive field walk it replaced, and the slip
   messages it no longer checks cannot carry a NaN.
 
@@ -605,3 +606,94 @@ def test_kalman_solve_equals_numpy_and_raises_where_it_does():
         kalman.solve(np.zeros((2, 2)), np.ones(2))
     nan = kalman.solve(np.full((1, 1), np.nan), np.ones(1))
     assert np.isnan(nan).all()
+
+
+# --- measurement Jacobians, residual monitor ---------------------------------------------------
+def test_measurement_rows_and_skew_equal_the_literal_forms():
+    """``skew`` of an array equals that of its floats; the NHC Jacobian's rows (a slice where
+    they are consecutive) equal the fancy-indexed rows of the full matrix; ZUPT and ZARU
+    carry -I where the literal forms put ``-np.eye(3)``."""
+    from slip_estimator.core.measurements import NonHolonomic, ZeroAngularRate, ZeroVelocity
+
+    rng = np.random.default_rng(23)
+    for _ in range(50):
+        state = random_state(rng)
+        v = rng.normal(size=3)
+        x, y, z = v.tolist()
+        literal = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+        assert np.array_equal(frames.skew(v), literal)
+        assert np.array_equal(frames.skew(v.tolist()), literal)
+        nhc = NonHolonomic(EARTH, rng.normal(0.0, 0.3, 3))
+        full = nhc.jacobian(state, (0, 1, 2))
+        for rows in ((0,), (1, 2), (2,), (0, 2), (0, 1)):
+            assert np.array_equal(nhc.jacobian(state, rows), full[list(rows)])
+        C_n_b = state.C_b_n.T
+        assert np.array_equal(full[:, ATT], -C_n_b @ frames.skew(state.v_eb_n))
+        zaru = ZeroAngularRate(EARTH).jacobian(state)
+        assert np.array_equal(zaru[:, ATT], C_n_b @ frames.skew(
+            earth_rate_n(EARTH, state.llh[0])))
+        assert np.array_equal(zaru[:, BG], -np.eye(3))
+        assert np.array_equal(ZeroVelocity().jacobian(state)[:, VEL], -np.eye(3))
+
+
+def test_residual_monitor_rows_equal_one_update_per_row():
+    """An update with one channel per row moves every channel as one single-row update
+    per row (the monitor's former path, slicing the arrays row by row)."""
+    from slip_estimator.core.diagnosis import ResidualMonitor
+
+    rng = np.random.default_rng(29)
+    by_rows, one_by_one = ResidualMonitor(), ResidualMonitor()
+    for _ in range(200):
+        A = rng.normal(size=(2, 2))
+        S, nu = A @ A.T + 1e-3 * np.eye(2), rng.normal(size=2)
+        by_rows.add_update('nhc', nu, S, ('nhc_lateral', 'nhc_vertical'))
+        for i, channel in enumerate(('nhc_lateral', 'nhc_vertical')):
+            one_by_one.add(channel, nu[i:i + 1], S[i:i + 1, i:i + 1])
+        by_rows.add_update('zupt', nu, S)
+        one_by_one.add('zupt', nu, S)
+    assert by_rows.mean == one_by_one.mean and by_rows.count == one_by_one.count
+    assert np.array_equal(list(by_rows.mean_square.values()),
+                          list(one_by_one.mean_square.values()), equal_nan=True)
+
+
+# --- wheel/IMU lag monitor ---------------------------------------------------------------------
+def correlation_vs_lag_literal(t_fast, x_fast, t_slow, y, lags, window_s=0.1):
+    """The lag loop as first written: per lag, np.std and np.corrcoef."""
+    c = np.concatenate([[0.0], np.cumsum(x_fast)])
+    out = np.full(len(lags), np.nan)
+    for k, lag in enumerate(lags):
+        tq = t_slow - lag
+        i0 = np.searchsorted(t_fast, tq - 0.5 * window_s)
+        i1 = np.searchsorted(t_fast, tq + 0.5 * window_s)
+        ok = i1 > i0
+        if ok.sum() < 3:
+            continue
+        mean = (c[i1[ok]] - c[i0[ok]]) / (i1[ok] - i0[ok])
+        if mean.std() > 0.0 and y[ok].std() > 0.0:
+            out[k] = float(np.corrcoef(mean, y[ok])[0, 1])
+    return out
+
+
+def test_lag_correlation_equals_the_per_lag_formulas():
+    """Every lag at once, the correlation and the spread test without np.corrcoef and
+    np.std: bit-identical, also where windows are empty at the ends, the wheel series is
+    constant or has too few samples in reach."""
+    from slip_estimator.core.timing import _spread, correlation_vs_lag
+
+    rng = np.random.default_rng(31)
+    lags = np.arange(-0.4, 0.4 + 1e-9, 0.01)
+    for trial in range(40):
+        t_fast = np.sort(rng.uniform(0.0, 30.0, rng.integers(200, 1600)))
+        t_slow = np.sort(rng.uniform(-1.0, 31.0, rng.integers(3, 320)))
+        x = np.sin(t_fast * rng.uniform(0.2, 2.0)) + rng.normal(0.0, 0.3, len(t_fast))
+        y = np.sin(t_slow - 0.05) + rng.normal(0.0, 0.3, len(t_slow))
+        if trial % 5 == 0:
+            y = np.full(len(t_slow), 0.1)
+        assert np.array_equal(correlation_vs_lag(t_fast, x, t_slow, y, lags),
+                              correlation_vs_lag_literal(t_fast, x, t_slow, y, lags),
+                              equal_nan=True)
+    # The mean of equal values need not be exact (0.1 * 7 / 7): np.std then is not 0.
+    for x in ([0.1] * 7, [0.1] * 3 + [0.3], [1.0] * 5, [0.0, 0.0], [1.0, float('nan')],
+              [1e-170, 0.0, 0.0]):
+        a = np.array(x)
+        assert _spread(a) == bool(a.std() > 0.0)
