@@ -22,6 +22,14 @@ _MINUS_EYE_3 = -np.eye(3)
 _MINUS_EYE_3.flags.writeable = False
 
 
+def _rows(a: np.ndarray, rows: tuple[int, ...]) -> np.ndarray:
+    """``a[list(rows)]``; a slice (a view, the same values, without the fancy index) where
+    the rows are consecutive, as every caller's are."""
+    if rows[-1] - rows[0] == len(rows) - 1:
+        return a[rows[0]:rows[-1] + 1]
+    return a[list(rows)]
+
+
 class ZeroVelocity:
     """ZUPT: the IMU point is at rest, ``v_eb_n = 0`` (paper eq. 17-18)."""
 
@@ -131,7 +139,7 @@ class NonHolonomic:
     def innovation(self, state: NavState, omega_ib_b: np.ndarray,
                    rows: tuple[int, ...] = (1, 2)) -> np.ndarray:
         """``0 - v_wb_b[rows]``, m/s."""
-        return -self.point_velocity_b(state, omega_ib_b)[list(rows)]
+        return -_rows(self.point_velocity_b(state, omega_ib_b), rows)
 
     def jacobian(self, state: NavState, rows: tuple[int, ...] = (1, 2)) -> np.ndarray:
         """``H = -rows( C_n_b [v x], C_n_b, 0, 0, -[l x] )``."""
@@ -140,11 +148,7 @@ class NonHolonomic:
         H[:, ATT] = -C_n_b @ skew(state.v_eb_n)
         H[:, VEL] = -C_n_b
         H[:, BG] = self._skew_l
-        # Rows as a slice where they are consecutive (every caller's): a view, the same
-        # values, without the fancy index (1.5 us).
-        if rows[-1] - rows[0] == len(rows) - 1:
-            return H[rows[0]:rows[-1] + 1]
-        return H[list(rows)]
+        return _rows(H, rows)
 
 
 class ForwardSpeed:

@@ -625,8 +625,11 @@ def test_measurement_rows_and_skew_equal_the_literal_forms():
         assert np.array_equal(frames.skew(v.tolist()), literal)
         nhc = NonHolonomic(EARTH, rng.normal(0.0, 0.3, 3))
         full = nhc.jacobian(state, (0, 1, 2))
+        w_ib_b = rng.normal(0.0, 0.3, 3)
+        v_full = nhc.innovation(state, w_ib_b, (0, 1, 2))
         for rows in ((0,), (1, 2), (2,), (0, 2), (0, 1)):
             assert np.array_equal(nhc.jacobian(state, rows), full[list(rows)])
+            assert np.array_equal(nhc.innovation(state, w_ib_b, rows), v_full[list(rows)])
         C_n_b = state.C_b_n.T
         assert np.array_equal(full[:, ATT], -C_n_b @ frames.skew(state.v_eb_n))
         zaru = ZeroAngularRate(EARTH).jacobian(state)
