@@ -7,6 +7,8 @@ same number of messages per topic, the same log times, and every field equal (fl
 bit for bit, NaN equal to NaN). Exit status 0 when identical, 1 with the first differences
 listed otherwise. A change that should not move any estimate (a faster decoder, a faster core)
 is checked with it on a real log and a simulated drive, replayed before and after the change.
+``--json BEFORE.json AFTER.json`` compares two figure files instead (``slip-estimator accuracy
+--json``, ``bench --json``): every number, with the largest absolute difference and where.
 """
 from __future__ import annotations
 
@@ -89,6 +91,28 @@ def compare_bags(before: str | Path, after: str | Path,
     return {t: len(a[t]) for t in topics}, diffs
 
 
+def compare_json(a: Any, b: Any, path: str = '') -> tuple[int, float, str, list[str]]:
+    """(numbers compared, largest absolute difference, where, other differences) between two
+    decoded JSON documents; NaN equals NaN."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        parts = [compare_json(a[k], b[k], f'{path}.{k}') for k in a if k in b]
+        other = [f'{path}: keys {sorted(set(a) ^ set(b))} in one only'] if set(a) != set(b) \
+            else []
+    elif isinstance(a, list) and isinstance(b, list):
+        parts = [compare_json(x, y, f'{path}[{i}]') for i, (x, y) in enumerate(zip(a, b))]
+        other = [f'{path}: {len(a)} items vs {len(b)}'] if len(a) != len(b) else []
+    elif isinstance(a, (int, float)) and isinstance(b, (int, float)) \
+            and not isinstance(a, bool) and not isinstance(b, bool):
+        nan_a, nan_b = math.isnan(a), math.isnan(b)
+        return 1, abs(a - b) if not (nan_a or nan_b) else 0.0 if nan_a and nan_b else math.inf, \
+            path, []
+    else:
+        return 0, 0.0, '', [] if a == b else [f'{path}: {a!r} vs {b!r}']
+    n = sum(p[0] for p in parts)
+    worst = max(parts, key=lambda p: p[1], default=(0, 0.0, '', []))
+    return n, worst[1], worst[2], other + [o for p in parts for o in p[3]]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog='python -m slip_estimator.bench.identical',
@@ -97,7 +121,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('before', type=Path)
     parser.add_argument('after', type=Path)
     parser.add_argument('--topics', nargs='+', default=list(ESTIMATE_TOPICS))
+    parser.add_argument('--json', action='store_true',
+                        help='compare two JSON figure files instead of two bags')
     args = parser.parse_args(argv)
+    if args.json:
+        import json
+        n, worst, where, other = compare_json(json.loads(args.before.read_text()),
+                                              json.loads(args.after.read_text()))
+        print(f'{n} numbers compared, largest absolute difference {worst!r}'
+              + (f' ({where})' if worst else '') + f'; {len(other)} other differences')
+        for line in other[:10]:
+            print('  ' + line)
+        return 0 if worst == 0.0 and not other else 1
     from slip_estimator.bagio import BagError
     try:
         counts, diffs = compare_bags(args.before, args.after, tuple(args.topics))

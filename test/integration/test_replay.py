@@ -251,3 +251,18 @@ def test_replay_simulated_bag_wheel_odometry_input(tmp_path):
     assert len(wheel_stamps - slip_stamps) <= 2  # the last samples may still be pending
     assert {1, 2, 3} <= {int(m.msg.vector.z) for m in
                          read_messages(tmp_path / 'out', {'/slip_estimator/slip_ratio'})}
+
+
+def test_compare_json_finds_the_largest_difference():
+    """Two figure files: every number compared, the largest absolute difference and where;
+    NaN equals NaN, NaN against a number is infinitely different; other differences named."""
+    from slip_estimator.bench.identical import compare_json
+
+    a = {'rows': [{'ba': 0.5, 'fa': float('nan'), 'name': 'short'}, {'ba': 0.25, 'n': 3}]}
+    assert compare_json(a, a) == (4, 0.0, '.rows[0].ba', [])
+    b = {'rows': [{'ba': 0.5, 'fa': float('nan'), 'name': 'short'}, {'ba': 0.25 + 1e-15, 'n': 3}]}
+    n, worst, where, other = compare_json(a, b)
+    assert (n, where, other) == (4, '.rows[1].ba', []) and 0.0 < worst < 2e-15
+    c = {'rows': [{'ba': 0.5, 'fa': 0.1, 'name': 'rough'}], 'extra': 1}
+    n, worst, where, other = compare_json(a, c)
+    assert worst == float('inf') and where == '.rows[0].fa' and len(other) == 3
