@@ -62,18 +62,21 @@ def chained_drive(duration_s: float, rate_imu_hz: float = IMU_RATE_HZ) -> Drive:
     return Drive(parts[0].params, concatenate([d.data for d in parts]))
 
 
-def time_core(params: Any, recs: Sequence[Any], repeats: int = 1) -> tuple[float, Any]:
-    """Best wall time (s) of feeding the records into a fresh SlipEstimator, and that estimator."""
+def time_core(params: Any, recs: Sequence[Any], repeats: int = 1) -> tuple[float, Any, float]:
+    """Best wall time (s) of feeding the records into a fresh SlipEstimator, that estimator,
+    and the best CPU time (s) of the thread doing it (the steadier figure on a shared
+    machine: waiting for a core is not counted)."""
     from slip_estimator.core.estimator import SlipEstimator
 
-    best, est = float('inf'), None
+    best, best_cpu, est = float('inf'), float('inf'), None
     for _ in range(repeats):
         est = SlipEstimator(params)
         gc.collect()
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.thread_time()
         feed(est, recs, keep_estimates=False)
         best = min(best, time.perf_counter() - t0)
-    return best, est
+        best_cpu = min(best_cpu, time.thread_time() - c0)
+    return best, est, best_cpu
 
 
 def _core_row(label: str, n: int, data_s: float, wall_s: float, rate_hz: float = IMU_RATE_HZ
@@ -99,8 +102,9 @@ def bench_core(args: argparse.Namespace) -> dict[str, Any]:
             (f'default (covariance_decimation={drive.params.covariance_decimation})',
              drive.params),
             ('reference (covariance_decimation=1)', drive.params.replace(covariance_decimation=1))):
-        wall, est = time_core(params, recs, args.repeats)
+        wall, est, cpu = time_core(params, recs, args.repeats)
         row = _core_row(label, drive.data.n_imu, drive.data.duration_s, wall)
+        row['cpu_s'], row['cpu_us_per_step'] = cpu, 1e6 * cpu / drive.data.n_imu
         row['aligned'] = bool(est.aligned)
         row['counters'] = dict(est.counters)
         rows.append(row)
@@ -226,7 +230,7 @@ def bench_scaling(args: argparse.Namespace) -> dict[str, Any]:
                                                        cfg.total_duration_s)))
         drive = drive_from_sim(simulate(cfg))
         recs = list(records(drive.data))
-        wall, _ = time_core(drive.params, recs, args.repeats)
+        wall, _, _ = time_core(drive.params, recs, args.repeats)
         by_rate.append(_core_row(f'{rate:g} Hz', drive.data.n_imu, drive.data.duration_s, wall,
                                  float(rate)))
         by_rate[-1]['rate_hz'] = float(rate)
@@ -235,7 +239,7 @@ def bench_scaling(args: argparse.Namespace) -> dict[str, Any]:
     for length in args.scaling_lengths:
         drive = chained_drive(float(length))
         recs = list(records(drive.data))
-        wall, _ = time_core(drive.params, recs, args.repeats)
+        wall, _, _ = time_core(drive.params, recs, args.repeats)
         by_length.append(_core_row(f'{length:g} s', drive.data.n_imu, drive.data.duration_s,
                                    wall))
         by_length[-1]['length_s'] = float(length)

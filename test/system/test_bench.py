@@ -30,7 +30,8 @@ def test_bench_all_sections(tmp_path, capsys):
 
     core = report['core']['rows']
     assert [r['label'].split()[0] for r in core] == ['default', 'reference']
-    assert all(r['imu_steps'] > 2000 and r['steps_per_s'] > 0 and r['aligned'] for r in core)
+    assert all(r['imu_steps'] > 2000 and r['steps_per_s'] > 0 and r['aligned']
+               and r['cpu_us_per_step'] > 0 for r in core)
 
     (sim,) = report['replay']['rows']
     assert sim['messages_in'] > 0 and sim['messages_out'] > 0
