@@ -427,6 +427,30 @@ def test_the_chain_holds_a_measurement_as_baseline_false_alarm_or_new_slip():
     assert chain.held_speed_var_mps2(0.5, 0.01) == pytest.approx(chain.chain_var)
 
 
+def test_a_ratchet_of_drift_sized_body_side_readings_does_not_climb_classes():
+    """Closed form at 0.5 m/s, a 2.5-s INS spread of 0.05 m/s, baseline 0.06: a body-side
+    change 0.06 -> 0.30 (0.12 m/s) beats one scale's drift (2 x 0.05) and is held. A second
+    one whose alarm fired as soon as the step test could after that hold (anchor 0.1 s after
+    it) continues the same excursion: 0.30 -> 0.50 makes 0.22 m/s over 6 s from the run's
+    anchor, within 2 x 0.05 x 6 / 2.5 = 0.24 m/s of drift, so the hold goes back to 0.06.
+    The same reading 1.5 s after the hold is a change of its own; a step to 0.90 (0.42 m/s)
+    beats the run's drift and is read."""
+    from slip_estimator.core.slip_model.chain import SlipChain
+    def chain_after(second, gap_s):
+        chain = SlipChain(Params())
+        chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+        first = chain.settle(0.30, 0.06, 0.5, 0.05 ** 2, 0.05, False, False, False,
+                             spread_scale_s=2.5, body_window_s=(10.0, 13.0))
+        assert first == 0.30
+        return chain.settle(second, 0.30, 0.5, 0.05 ** 2, 0.05, False, False, False,
+                            spread_scale_s=2.5, body_window_s=(13.0 + gap_s, 16.0 + gap_s))
+    assert chain_after(0.50, 0.1) == 0.06
+    assert chain_after(0.50, 1.5) == 0.50
+    assert chain_after(0.90, 0.1) == 0.90
+    # A reversal is not a ratchet: 0.30 -> -0.30 (a run-ahead) is a change of its own.
+    assert chain_after(-0.30, 0.1) == -0.30
+
+
 def test_a_measurement_on_another_slope_is_not_snapped_to_the_baseline():
     """The baseline 0.08 was measured on level ground. Down a 5-degree slope the body runs
     ahead (-0.05, within the chain's spread of the baseline): gravity changed the traction,

@@ -14,7 +14,9 @@ What it assumes
   **wheel noise is white**, and the rim speed's age within one encoder sample is part of its
   error at starts and stops.
 * **A slip change settles** within seconds: a body-side reading still moving when its
-  measurement times out is INS drift, and the hold stays.
+  measurement times out is INS drift, and the hold stays; so is a run of same-direction
+  body-side readings, each alarm firing as soon as the step test could after the last hold,
+  unless together they beat the drift (growing with the span) of their whole span.
 * **An INS too coarse to place a slip within the low class** (the filter's 1-s prediction
   beyond 15 % of the rim speed: a consumer IMU) resolves only what beats its drift: a
   body-side change must beat twice its predicted drift over the span it integrated, a
