@@ -201,8 +201,10 @@ def test_a_stop_does_not_turn_the_heading_through_the_bias_heading_correlation()
     static bias 2.5 sigma away from the one the drive held. The stop's ZUPT + ZARU, applied as
     the updater applies them (window means at 10 Hz, R from the scatter), learn the bias but
     may turn the heading by no more than the gyro's own white noise could over the stop
-    (3 sigma of its angle random walk, 2 deg; without the consider states: 18 deg). The
-    paper's method (``wheel_aid: off``) still takes the correlation."""
+    (3 sigma of its angle random walk, 2 deg; without the consider states: 18 deg) while the
+    rest's bias may differ from the drive's (``rest_bias_jump_var_rps2``: before a stop
+    after driving measured it, and when the drive vibrated beyond the rest). The paper's
+    method (``wheel_aid: off``) still takes the correlation."""
     from slip_estimator.core.measurements import (NonHolonomic, PseudoMeasurements,
                                                   ZeroAngularRate, ZeroVelocity)
     from slip_estimator.core.planet import earth_rate_n
@@ -218,9 +220,10 @@ def test_a_stop_does_not_turn_the_heading_through_the_bias_heading_correlation()
     b_rest = 2.5 * sd_bg
     rng = np.random.default_rng(3)
 
-    def stop(params):
+    def stop(params, jump_var_rps2=math.inf):
         flt = started_filter(params, v_eb_n=(0.02, -0.03, 0.0))
         flt.P = P.copy()
+        flt.rest_bias_jump_var_rps2 = jump_var_rps2
         pm = PseudoMeasurements(ZeroVelocity(), ZeroAngularRate(EARTH, 1e-5, n_g),
                                 NonHolonomic(EARTH, np.zeros(3)))
         C0 = flt.state.C_b_n.copy()
@@ -247,6 +250,10 @@ def test_a_stop_does_not_turn_the_heading_through_the_bias_heading_correlation()
     assert b_z > 0.0
     turn_paper, _ = stop(Params(wheel_aid='off'))
     assert turn_paper > 5.0 * arw_bound  # what the correlation does
+    # a rest bias that may differ from the drive's by 10 sigma keeps 1 % of the heading gain;
+    # one that is the drive's (no vibration beyond the rest's) is the drive's evidence
+    assert stop(Params(), (10.0 * sd_bg) ** 2)[0] < arw_bound
+    assert stop(Params(), 0.0)[0] > 5.0 * arw_bound
 
 
 def test_correction_reports_the_forward_speed_and_along_track_gravity_change():
