@@ -753,3 +753,23 @@ def test_the_free_ins_reading_variance_follows_tilt_bias_and_their_correlation(h
         both.append(var(np.outer(x, x)))
     assert min(both) == pytest.approx(0.0, abs=1e-9) and max(both) == pytest.approx(
         (2 * b * T) ** 2, rel=1e-3)
+
+
+def test_the_gyro_bias_prior_grows_with_the_measured_grade():
+    """An IMU measured r times noisier than the default gyro density gets the default turn-on
+    bias sigma times sqrt(r) when that is left at its default; a declared one is kept, and a
+    gyro quieter than the default changes nothing."""
+    from slip_estimator.core.params import with_message_noise
+
+    default = Params()
+    dt_s = 1.0 / 30.0
+    consumer = with_message_noise(default, 0.05 ** 2, 0.02 ** 2, dt_s, raise_only=True)
+    r = 0.02 * math.sqrt(dt_s) / default.gyro_noise_density_rps_rthz
+    assert consumer.gyro_noise_density_rps_rthz == pytest.approx(0.02 * math.sqrt(dt_s))
+    assert consumer.initial_gyro_bias_std == pytest.approx(
+        default.initial_gyro_bias_std * math.sqrt(r))
+    declared = with_message_noise(default.replace(initial_gyro_bias_std=0.001), 0.05 ** 2,
+                                  0.02 ** 2, dt_s)
+    assert declared.initial_gyro_bias_std == 0.001
+    quiet = with_message_noise(default, 1e-8, 1e-10, dt_s)
+    assert quiet.initial_gyro_bias_std == default.initial_gyro_bias_std
