@@ -22,6 +22,22 @@
   (:data:`BODY_VELOCITY_CONSIDER`): they come from the gyro, ZARU at rest and the wheel
   yaw-rate aid, and the velocity follows the body's heading (the constraint turns v, not the
   body). With ``wheel_aid: off`` (the paper's method) they correct every state, as there.
+* **A stop holds no heading information either.** ZUPT (zero velocity) is unchanged by the
+  same rotation about the vertical, so it too leaves heading and gyro z bias alone. ZARU
+  measures the gyro bias at rest, and its only route to the heading is the bias-heading
+  correlation the drive built, which assumes that the bias the drive integrated is the one
+  at rest. On a consumer gyro it is not: the bias the wheel yaw-rate aid holds while driving
+  also carries the motion's errors (vibration rectification, scale factor in turns, the
+  effective track), the rest shows the static bias alone, and the correlation turned their
+  difference into heading (a 10-s stop of the simulated vibrating no-slip robot, seed 1:
+  +6 deg, 3.8 -> 9.8 deg of heading error, against a true change of none). ZARU therefore
+  keeps the heading as a consider state (:data:`REST_RATE_CONSIDER`) that keeps only the
+  share ``P_bb / (P_bb + J)`` of its gain: ``J`` (:attr:`rest_bias_jump_var_rps2`, set by the
+  updater at each stop) is the variance by which the rest's z bias may differ from the
+  drive's, from the gyro scatter the drive showed beyond the rest's. A gyro that did not
+  vibrate keeps the correlation's correction (an industrial IMU, where the bias is one
+  bias: the simulated fifty_hz robot), a vibrating one keeps the heading the gyro and the
+  wheel yaw-rate aid made (before the first stop after driving: a pure consider state).
 """
 from __future__ import annotations
 
@@ -44,8 +60,10 @@ _EYE_15 = np.eye(N_ERR)
 _EYE_15.flags.writeable = False
 BODY_VELOCITY_CONSIDER = [ATT.start + 2, BG.start + 2]
 """Heading error (down component of psi) and gyro z bias: not corrected by body-frame velocity
-updates (module docstring)."""
-_BODY_VELOCITY_MODELS = frozenset({'nhc', 'wheel'})
+and ZUPT updates (module docstring)."""
+_BODY_VELOCITY_MODELS = frozenset({'nhc', 'wheel', 'zupt'})
+REST_RATE_CONSIDER = [ATT.start + 2]
+"""Heading error: not corrected by ZARU (module docstring)."""
 
 
 class UpdateOutcome(NamedTuple):
@@ -88,7 +106,9 @@ class ErrorStateFilter:
     def __init__(self, params: Params, planet: Planet) -> None:
         self.planet = planet
         self._decimation = params.covariance_decimation
-        self._consider = None if params.wheel_aid == 'off' else BODY_VELOCITY_CONSIDER
+        aided = params.wheel_aid != 'off'
+        self._consider = BODY_VELOCITY_CONSIDER if aided else None
+        self._rest_consider = REST_RATE_CONSIDER if aided else None
         self._vibration_fraction = params.vibration_noise_fraction
         self.use_noise(params)
         self._gate = {k: kalman.chi2_threshold(k, params.innovation_gate_probability)
@@ -96,6 +116,7 @@ class ErrorStateFilter:
         self.state: NavState | None = None
         self.P = np.zeros((N_ERR, N_ERR))
         self.g_mps2 = 0.0
+        self.rest_bias_jump_var_rps2 = math.inf  # J of _rest_heading_share (inf: consider)
         self.nis_mean = {'zupt': float('nan'), 'zaru': float('nan'), 'nhc': float('nan'),
                          'wheel': float('nan'), 'wheel_yaw': float('nan')}
         self.last_records: list[kalman.UpdateRecord] = []
@@ -215,12 +236,14 @@ class ErrorStateFilter:
         the gate, so it can only pull the state by a bounded, statistically plausible amount
         (robust Kalman filtering by measurement-noise scaling)."""
         gate = self._gate[len(innovation)]
-        consider = self._consider if name in _BODY_VELOCITY_MODELS else None
-        dx, P, rec = kalman.update(self.P, innovation, H, R, gate, name, consider)
+        consider = self._consider if name in _BODY_VELOCITY_MODELS else \
+            self._rest_consider if name == 'zaru' else None
+        share = self._rest_heading_share() if name == 'zaru' else 0.0
+        dx, P, rec = kalman.update(self.P, innovation, H, R, gate, name, consider, share)
         gated = not rec.accepted and math.isfinite(rec.nis)
         if gated:
             dx, P, _ = kalman.update(self.P, innovation, H, R * (rec.nis / gate), name=name,
-                                     consider=consider)
+                                     consider=consider, consider_share=share)
         self.last_records.append(rec)
         prev = self.nis_mean[name]
         self.nis_mean[name] = rec.nis if math.isnan(prev) else 0.98 * prev + 0.02 * rec.nis
@@ -228,6 +251,13 @@ class ErrorStateFilter:
             return UpdateOutcome(rec, gated, None)
         self.P = P
         return UpdateOutcome(rec, gated, self.correct(dx))
+
+    def _rest_heading_share(self) -> float:
+        """The share of ZARU's heading gain kept: ``P_bb / (P_bb + J)`` with ``J`` the
+        variance by which the rest's gyro z bias may differ from the drive's
+        (:attr:`rest_bias_jump_var_rps2`; module docstring)."""
+        var_bg = float(self.P[BG.start + 2, BG.start + 2])
+        return var_bg / (var_bg + self.rest_bias_jump_var_rps2) if var_bg > 0.0 else 0.0
 
     def anchor(self, innovation: np.ndarray, H: np.ndarray, R: np.ndarray) -> Correction:
         """An ungated forward-speed update: a known jump of the INS error (not a constraint to

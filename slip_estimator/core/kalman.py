@@ -105,12 +105,14 @@ def predict(P: np.ndarray, Phi: np.ndarray, Q: np.ndarray) -> np.ndarray:
 
 def update(P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
            gate: float = float('inf'), name: str = '',
-           consider: list[int] | None = None) -> tuple[np.ndarray, np.ndarray, UpdateRecord]:
+           consider: list[int] | None = None,
+           consider_share: float = 0.0) -> tuple[np.ndarray, np.ndarray, UpdateRecord]:
     """Error-state measurement update.
 
     ``consider``: error-state indices the update must not correct (Schmidt "consider"
     states: their gain rows are zero; the Joseph form keeps P right for that gain, so their
-    uncertainty still enters S and the cross-covariances).
+    uncertainty still enters S and the cross-covariances); ``consider_share`` of their gain is
+    kept (0: pure consider states; any gain keeps the Joseph form's P right).
     Returns the error-state estimate ``dx`` (zero when gated out), the updated covariance and
     the update record.
     """
@@ -123,8 +125,11 @@ def update(P: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray,
         return np.zeros(P.shape[0]), P, UpdateRecord(name, innovation, S, nis, False)
     K = solve(S, PHt.T).T
     if consider is not None:
-        for i in consider:  # one row at a time: 0.2 us each, a fancy index 1.7 us
-            K[i] = 0.0
+        if consider_share == 0.0:
+            for i in consider:  # one row at a time: 0.2 us each, a fancy index 1.7 us
+                K[i] = 0.0
+        else:
+            K[consider, :] *= consider_share
     dx = K @ innovation
     IKH = _identity(P.shape[0]) - K @ H
     P_new = symmetrize(IKH @ P @ IKH.T + K @ R @ K.T)

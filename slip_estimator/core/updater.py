@@ -67,6 +67,7 @@ class Updater:
         self.next_update_ns: int | None = None
         self.is_stationary = self.is_turning = False
         self._moved = False  # driven since the filter started (its first rest is the alignment's)
+        self._drive_scatter = (0, 0.0)  # gyro window variances summed while driving, and n
         self._noise_adopted = False  # the IMU's noise model taken (once the rate was known)
 
     def schedule(self, stamp_ns: int) -> None:
@@ -93,6 +94,8 @@ class Updater:
             # A stop after driving levels the INS again; the accelerometer's turn-on bias
             # uncertainty is the scale of what a drive leaves unknown.
             flt.reopen_levels(self.params.initial_accel_bias_std)
+        if self._relevel:
+            self._drive_vibration(flt, stationary, imu_rate, was_stationary)
         self._moved = self._moved or not self.is_stationary
         self.is_turning = self.turn.is_turning(w_mean - flt.state.b_g, flt.state.C_b_n,
                                                stationary.recent_rim_speed_mps(stamp_ns),
@@ -111,6 +114,28 @@ class Updater:
             self.use_imu_noise((rest[0] ** 2, rest[1] ** 2), flt, stationary, imu_rate,
                                raise_only=True)
         return out
+
+    def _drive_vibration(self, flt: ErrorStateFilter, stationary: StationaryDetector,
+                         imu_rate: ImuRate, was_stationary: bool) -> None:
+        """While driving, the mean gyro scatter (largest axis) in the IMU window; at the
+        start of a stop, the variance by which the rest's gyro bias may differ from the
+        drive's (the filter's :attr:`~ErrorStateFilter.rest_bias_jump_var_rps2`): the
+        drive's scatter beyond the rest's (vibration), a fraction ``vibration_noise_fraction``
+        of it as white noise (as the process noise takes it) averaged over the wheel yaw-rate
+        aid's correlation time, the span over which the aid taught the drive's bias."""
+        window = stationary.window
+        if window.n < 2:
+            return
+        var = float(max(window.variance()[3:]))
+        if not self.is_stationary:
+            n, total = self._drive_scatter
+            self._drive_scatter = (n + 1, total + var)
+        elif not was_stationary and self._drive_scatter[0]:
+            n, total = self._drive_scatter
+            k = self.params.vibration_noise_fraction
+            flt.rest_bias_jump_var_rps2 = k * k * max(0.0, total / n - var) * imu_rate.dt_s \
+                / self.params.wheel_yaw_rate_correlation_s
+            self._drive_scatter = (0, 0.0)
 
     def wheel_yaw_rate(self, flt: ErrorStateFilter, wheel: WheelSample, yaw_rate_b_rps: float,
                        stationary: StationaryDetector, imu_rate: ImuRate) -> list[Correction]:

@@ -194,6 +194,68 @@ def test_body_velocity_updates_leave_heading_and_gyro_z_bias_to_the_gyro_and_yaw
     assert paper.P[2, 2] < P[2, 2] and paper.state.b_g[2] != 0.0
 
 
+def test_a_stop_does_not_turn_the_heading_through_the_bias_heading_correlation():
+    """A 10-s stop after a drive: the drive left the heading 14 deg uncertain and 0.75
+    correlated with the gyro z bias (the heading integrated the bias), the INS velocity a few
+    cm/s off, and the gyro at rest (a consumer one: 0.02 rad/s per sample at 30 Hz) reads a
+    static bias 2.5 sigma away from the one the drive held. The stop's ZUPT + ZARU, applied as
+    the updater applies them (window means at 10 Hz, R from the scatter), learn the bias but
+    may turn the heading by no more than the gyro's own white noise could over the stop
+    (3 sigma of its angle random walk, 2 deg; without the consider states: 18 deg) while the
+    rest's bias may differ from the drive's (``rest_bias_jump_var_rps2``: before a stop
+    after driving measured it, and when the drive vibrated beyond the rest). The paper's
+    method (``wheel_aid: off``) still takes the correlation."""
+    from slip_estimator.core.measurements import (NonHolonomic, PseudoMeasurements,
+                                                  ZeroAngularRate, ZeroVelocity)
+    from slip_estimator.core.planet import earth_rate_n
+
+    rate_hz, std_rps, stop_s, period_s = 30.0, 0.02, 10.0, 0.1
+    n_g = std_rps / math.sqrt(rate_hz)  # rad/s/sqrt(Hz)
+    sd_psi, sd_bg, corr = math.radians(14.0), 8e-4, 0.75
+    P = P0.copy()
+    P[2, 2], P[14, 14] = sd_psi ** 2, sd_bg ** 2
+    P[2, 14] = P[14, 2] = corr * sd_psi * sd_bg
+    P[3, 3] = P[4, 4] = 0.03 ** 2  # velocity error, correlated with the heading
+    P[2, 4] = P[4, 2] = -0.5 * sd_psi * 0.03
+    b_rest = 2.5 * sd_bg
+    rng = np.random.default_rng(3)
+
+    def stop(params, jump_var_rps2=math.inf):
+        flt = started_filter(params, v_eb_n=(0.02, -0.03, 0.0))
+        flt.P = P.copy()
+        flt.rest_bias_jump_var_rps2 = jump_var_rps2
+        pm = PseudoMeasurements(ZeroVelocity(), ZeroAngularRate(EARTH, 1e-5, n_g),
+                                NonHolonomic(EARTH, np.zeros(3)))
+        C0 = flt.state.C_b_n.copy()
+        n = int(rate_hz * period_s)
+        for _ in range(int(stop_s / period_s)):
+            w_ie_b = flt.state.C_b_n.T @ earth_rate_n(EARTH, LLH[0])
+            w_mean = w_ie_b + np.array([0.0, 0.0, b_rest]) + rng.normal(0.0, std_rps, 3) / \
+                math.sqrt(n)
+            for c in pm.select(flt.state, w_mean, n / rate_hz, True, False,
+                               np.full(3, std_rps ** 2), 1.0 / rate_hz):
+                flt.update(c.name, c.innovation, c.H, c.R)
+        turn = math.atan2(flt.state.C_b_n[1, 0], flt.state.C_b_n[0, 0]) - \
+            math.atan2(C0[1, 0], C0[0, 0])
+        return abs(turn), flt.state.b_g[2]
+
+    arw_bound = 3.0 * n_g * math.sqrt(stop_s)
+    turn, b_z = stop(Params())
+    assert turn < arw_bound
+    # the bias is learned at rest as a scalar filter learns it from the rest mean
+    # (prior 0 +- sd_bg, the mean of stop_s x rate_hz samples)
+    r_mean = std_rps ** 2 / (stop_s * rate_hz)
+    posterior_sd = math.sqrt(1.0 / (1.0 / sd_bg ** 2 + 1.0 / r_mean))
+    assert abs(b_z - b_rest * sd_bg ** 2 / (sd_bg ** 2 + r_mean)) < 3.0 * posterior_sd
+    assert b_z > 0.0
+    turn_paper, _ = stop(Params(wheel_aid='off'))
+    assert turn_paper > 5.0 * arw_bound  # what the correlation does
+    # a rest bias that may differ from the drive's by 10 sigma keeps 1 % of the heading gain;
+    # one that is the drive's (no vibration beyond the rest's) is the drive's evidence
+    assert stop(Params(), (10.0 * sd_bg) ** 2)[0] < arw_bound
+    assert stop(Params(), 0.0)[0] > 5.0 * arw_bound
+
+
 def test_correction_reports_the_forward_speed_and_along_track_gravity_change():
     flt = started_filter(v_eb_n=(1.0, 0.0, 0.0))
     dx = np.zeros(N_ERR)
@@ -691,3 +753,23 @@ def test_the_free_ins_reading_variance_follows_tilt_bias_and_their_correlation(h
         both.append(var(np.outer(x, x)))
     assert min(both) == pytest.approx(0.0, abs=1e-9) and max(both) == pytest.approx(
         (2 * b * T) ** 2, rel=1e-3)
+
+
+def test_the_gyro_bias_prior_grows_with_the_measured_grade():
+    """An IMU measured r times noisier than the default gyro density gets the default turn-on
+    bias sigma times sqrt(r) when that is left at its default; a declared one is kept, and a
+    gyro quieter than the default changes nothing."""
+    from slip_estimator.core.params import with_message_noise
+
+    default = Params()
+    dt_s = 1.0 / 30.0
+    consumer = with_message_noise(default, 0.05 ** 2, 0.02 ** 2, dt_s, raise_only=True)
+    r = 0.02 * math.sqrt(dt_s) / default.gyro_noise_density_rps_rthz
+    assert consumer.gyro_noise_density_rps_rthz == pytest.approx(0.02 * math.sqrt(dt_s))
+    assert consumer.initial_gyro_bias_std == pytest.approx(
+        default.initial_gyro_bias_std * math.sqrt(r))
+    declared = with_message_noise(default.replace(initial_gyro_bias_std=0.001), 0.05 ** 2,
+                                  0.02 ** 2, dt_s)
+    assert declared.initial_gyro_bias_std == 0.001
+    quiet = with_message_noise(default, 1e-8, 1e-10, dt_s)
+    assert quiet.initial_gyro_bias_std == default.initial_gyro_bias_std
