@@ -95,11 +95,13 @@ def _published(v_body_mps: float, w: float, s: float, var_v_mps2: float, var_w: 
     """The published 1-sigma and P(medium+) of a moving reading ``s`` (body speed
     ``v_body_mps``, variance ``var_v_mps2``; rim speed ``w``, variance ``var_w``): the body
     speed also within the change the step test cannot see; both of the mixture of the reading
-    and, where it is wrong, the ground's slip ``c.s_alt`` read as well
-    (:mod:`~slip_estimator.core.slip_confidence`)."""
+    and, where it is wrong (more often for a reading across 0.2 from the hold:
+    :meth:`~slip_estimator.core.slip_confidence.Confidence.wrong_at`), the ground's slip
+    ``c.s_alt`` read as well (:mod:`~slip_estimator.core.slip_confidence`)."""
     s_std = slip_ratio_std(v_body_mps, w, var_v_mps2 + c.resolution_var_mps2, var_w)
-    return (mixture_std(s, s_std, c.p_wrong, c.s_alt),
-            p_medium_mixture(s, s_std, c.p_wrong, c.s_alt))
+    p_wrong = c.wrong_at(s)
+    return (mixture_std(s, s_std, p_wrong, c.s_alt),
+            p_medium_mixture(s, s_std, p_wrong, c.s_alt))
 
 
 def _resolved(v_body_mps: float, w: float, s: float, s_std: float, rim_timing_var_mps2: float,

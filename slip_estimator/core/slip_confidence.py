@@ -23,7 +23,12 @@ Two things the filter's velocity covariance does not know, both measured online:
   not make it more certain). The published slip is that mixture: P(medium+) is
   ``(1 - eps_k) P(s, sigma) + eps_k P(s_b, sigma)`` (:func:`p_medium_mixture`), the 1-sigma
   the mixture's, ``sqrt(sigma^2 + eps_k (1 - eps_k) (s - s_b)^2)`` (:func:`mixture_std`;
-  :class:`ReadingRecord` keeps the count).
+  :class:`ReadingRecord` keeps the count). A reading on the other side of 0.2 than the hold
+  (the filter's speed moved off the hold with no alarm: a change no re-examination confirmed)
+  rests on one reading more (:meth:`Confidence.wrong_at`): on a hold on the baseline, ``eps``
+  itself. Before, a 30-Hz consumer IMU published P(medium+) >= 0.8 for low truth on a hold on
+  the baseline where its drive had learned eps = 0.91-0.92 (skid_steer_30hz seed 2, 3
+  samples; skid_steer_30hz_vibrating seed 3, 23 samples; none truly medium+).
 
 P(medium+) is one-sided: the probability that the slip lies beyond 0.2 on the reading's side
 (:func:`~slip_estimator.core.slip.p_beyond_medium_bound`). The Gaussian in slip is a
@@ -40,7 +45,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from slip_estimator.core.slip import p_beyond_medium_bound
+from slip_estimator.core.slip import MEDIUM_LOWER_BOUND, p_beyond_medium_bound
 
 EPS_PRIOR_DISAGREED = 1.0
 """Prior re-examinations that disagreed (of ``EPS_PRIOR_N``): a reading is wrong one time in
@@ -60,6 +65,20 @@ class Confidence(NamedTuple):
     """probability that the reading is wrong"""
     s_alt: float = 0.0
     """the slip where it is: the ground's baseline (zero, the wheels', before one)"""
+    s_held: float | None = None
+    """the slip model's hold (None while it measures or at rest)"""
+    p_wrong_departed: float = 0.0
+    """probability that a reading departed from the hold is wrong: one reading more"""
+
+    def wrong_at(self, s: float) -> float:
+        """Probability that the published reading ``s`` is wrong: :attr:`p_wrong_departed`
+        where it lies on the other side of 0.2 than the hold (medium or worse against a low
+        hold, or the reverse: a change no alarm saw and no re-examination confirmed), else
+        :attr:`p_wrong`."""
+        if self.s_held is None or \
+                (abs(s) > MEDIUM_LOWER_BOUND) == (abs(self.s_held) > MEDIUM_LOWER_BOUND):
+            return self.p_wrong
+        return self.p_wrong_departed
 
 
 def resolution_var_mps2(change_mps: float) -> float:
@@ -134,12 +153,17 @@ class ReadingRecord:
         :meth:`observe`)."""
         return Confidence(resolution_var_mps2(change_mps),
                           self.wrong_probability(held_slip, baseline),
-                          0.0 if baseline is None else baseline)
+                          0.0 if baseline is None else baseline, held_slip,
+                          self.wrong_probability(held_slip, baseline, departed=True))
 
-    def wrong_probability(self, held_slip: float | None, baseline: float | None) -> float:
+    def wrong_probability(self, held_slip: float | None, baseline: float | None,
+                          departed: bool = False) -> float:
         """Probability that the published reading is wrong: 0 on the baseline; otherwise
-        ``1 - (1 - eps)^k`` for the ``k`` readings it rests on (at least the one running)."""
-        if held_slip is not None and held_slip == baseline:
+        ``1 - (1 - eps)^k`` for the ``k`` readings it rests on (at least the one running);
+        ``departed``: a reading away from the hold is one reading more."""
+        on_baseline = held_slip is not None and held_slip == baseline
+        if on_baseline and not departed:
             return 0.0
-        k = self.chained + (1 if held_slip is None and self._before is not None else 0)
-        return 1.0 - (1.0 - self.eps) ** max(k, 1)
+        k = 0 if on_baseline else max(
+            self.chained + (1 if held_slip is None and self._before is not None else 0), 1)
+        return 1.0 - (1.0 - self.eps) ** (k + departed)

@@ -68,7 +68,8 @@ def test_reading_record_counts_disagreeing_re_examinations_and_the_chain():
     eps = 2.0 / 7.0
     assert rec.eps == pytest.approx(eps) and rec.chained == 1
     c = rec.confidence(0.5, 0.1, 0.3)
-    assert c == pytest.approx(Confidence(0.03, eps, 0.1))
+    assert c[:3] == pytest.approx((0.03, eps, 0.1))
+    assert (c.s_held, c.p_wrong_departed) == (0.5, pytest.approx(1.0 - (1.0 - eps) ** 2))
     rec.observe(None, 0.1, False)
     assert rec.wrong_probability(None, 0.1) == pytest.approx(1.0 - (1.0 - eps) ** 2)
     rec.observe(0.7, 0.1, False)
@@ -105,6 +106,34 @@ def test_published_sigma_and_p_add_to_the_reading_without_moving_its_class():
         p_beyond_medium_bound(0.3, plain.slip_ratio_std))
     still = slip_estimate(WheelSample(7, 0.0), 0.0, 0.0, 1e-4, p, True, 1.0, confidence=c)
     assert (still.slip_ratio_std, still.p_medium_or_worse) == (0.0, 0.0)
+
+
+def test_a_reading_off_the_hold_across_0_2_rests_on_one_reading_more():
+    """Hold on the baseline 0.1 after re-examinations that mostly disagreed (eps = 0.9): a
+    reading s = 0.3 (body 0.7 m/s, rim 1.0) is a change no alarm saw, wrong with 0.9 and then
+    the ground's 0.1: P(medium+) = 0.1 Phi(0.1 / sd) + 0.9 Phi(-0.1 / sd), below 0.8 (the
+    reading alone: Phi(0.1 / sd), sd about 0.01: 1.0). A reading on the hold's side of 0.2
+    keeps the hold's doubt (none on the baseline). The class and ratio stay the reading's."""
+    rec = ReadingRecord()
+    rec.observe(None, None, True)
+    rec.observe(None, None, False)
+    rec.observe(0.1, 0.1, False)
+    rec.n_reexamined, rec.n_disagreed = 5, 8  # as counted: eps = (8 + 1) / (5 + 5)
+    assert rec.eps == pytest.approx(0.9)
+    c = rec.confidence(0.1, 0.1, 0.0)
+    assert (c.wrong_at(0.15), c.wrong_at(0.3), c.wrong_at(-0.3)) == \
+        (0.0, pytest.approx(0.9), pytest.approx(0.9))
+    p, wheel = Params(), WheelSample(7, 1.0)
+    plain = slip_estimate(wheel, 0.7, 0.0, 1e-4, p, False, 1.0, held_slip=0.1)
+    est = slip_estimate(wheel, 0.7, 0.0, 1e-4, p, False, 1.0, held_slip=0.1, confidence=c)
+    sd = slip_ratio_std(0.7, 1.0, 1e-4, p.wheel_speed_std_mps ** 2)
+    assert plain.p_medium_or_worse > 0.99
+    assert est.p_medium_or_worse == pytest.approx(
+        0.1 * _phi(0.1 / sd) + 0.9 * _phi(-0.1 / sd)) and est.p_medium_or_worse < 0.8
+    assert (est.slip_class, est.slip_ratio) == (plain.slip_class, plain.slip_ratio)
+    low = slip_estimate(wheel, 0.85, 0.0, 1e-4, p, False, 1.0, held_slip=0.1, confidence=c)
+    assert low.p_medium_or_worse == pytest.approx(
+        p_beyond_medium_bound(low.slip_ratio, low.slip_ratio_std))
 
 
 class _Plain(SlipEstimator):
