@@ -15,12 +15,10 @@ by the fused position's increments. The track is continuous either way (no jump 
 The INS's speed error is the IMU's own measured error over a measuring span: the slip model's
 learned spread of the free residual's change (:attr:`SlipModel.spread_var`) at its longest
 scale, or its 1-s spread carried to that scale as a random walk, if larger (it is learned
-sooner); or, for a hold chained from earlier changes, the chain's variance if wider (each
-change adds a span's spread; the slip model's ``SlipChain.chain_var``). One exception keeps a
-coarse INS: a slip measured from rest (on a stop's zero velocity, no change chained to it
-since) that puts the body's speed beyond ``slip_change_sigma`` of that error from the rim
-speed: wheels spinning on a body that stayed stuck, which the free INS sees from a ZUPT far
-better than over a running measuring span.
+sooner). One exception keeps a coarse INS: a slip measured from rest (on a stop's zero
+velocity, no change chained to it since) that puts the body's speed beyond
+``slip_change_sigma`` of that error from the rim speed: wheels spinning on a body that stayed
+stuck, which the free INS sees from a ZUPT far better than over a running measuring span.
 
 Not resolved here (measured): the first tens of seconds after an in-motion start on a
 consumer IMU, before the spread is learned (its prior is the wheel aid's noise): the INS's

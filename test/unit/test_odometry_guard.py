@@ -108,25 +108,6 @@ def test_fallback_through_a_quarter_circle_ends_at_radius_radius():
     np.testing.assert_allclose(out.p_ob_o[:2], (r, r), atol=2e-3)
 
 
-def test_a_hold_chained_beyond_the_spread_falls_back():
-    """The wheel aid's verdict rests on the INS spread (default prior: 0.004 m^2/s^2 over
-    2.5 s, 0.063 m/s, resolvable at 1 m/s) or the chain of changes behind the hold if wider:
-    0.1 m^2/s^2 (0.32 m/s) cannot place a slip in the low class, and a hold of s = 1.0 with
-    the wheels at 1 m/s falls back (a consumer IMU's chained hold followed a body at rest)."""
-    from slip_estimator.core.params import Params
-    from slip_estimator.core.slip_model.wheel_aid import WheelAid
-
-    aid = WheelAid(Params())
-    chain = aid.slip_model.chain
-    chain.assumed = True  # a chain after a start in motion: not anchored from rest
-    stuck = _slip(1.0, 0.0, 4)
-    d = aid.odometry_decision(stuck)
-    assert not d.fallback and d.ins_error_mps == pytest.approx(math.sqrt(0.004))
-    chain.chain_var = 0.1
-    d = aid.odometry_decision(stuck)
-    assert d.fallback and d.ins_error_mps == pytest.approx(math.sqrt(0.1))
-
-
 def test_a_consumer_imu_false_alarm_falls_back_and_is_named_in_the_health_report():
     """The 30-Hz vibrating consumer IMU over ground without slip (seed 1, 120 s): a false
     body-side alarm holds the INS near 0 m/s from about 68 s while the wheels read 1 m/s.

@@ -119,16 +119,11 @@ class WheelAid:
         chained one on an INS that cannot resolve slip is no better than the raw rim speed,
         and a wrong one far worse (a consumer IMU's no-slip drive ended 4.8 m off carrying
         its anchored holds, 2.8 m at the raw rim speed; test17run's ground slips by ~0.05,
-        and carrying it takes the plain forward-speed RMSE 0.0444 -> 0.0403 m/s)). The INS's
-        error there is its spread over a measuring span, or the chain of changes the hold
-        rests on if wider (``SlipChain.chain_var``, a span's spread per change): a consumer
-        IMU's chained holds reached s = 1.0 with the wheels at 1 m/s, truth 0.05, and the
-        spread alone (0.15 m/s) let the track follow a body at rest."""
+        and carrying it takes the plain forward-speed RMSE 0.0444 -> 0.0403 m/s))."""
         model = self.slip_model
         chain = model.chain
         anchored = not chain.assumed and chain.chain_var == 0.0
-        error_var_mps2 = max(ins_speed_error_var(model.spread_var, SCALES_S), chain.chain_var)
-        return decide(est, error_var_mps2, anchored,
+        return decide(est, ins_speed_error_var(model.spread_var, SCALES_S), anchored,
                       self._resolving_sigmas, self.held_slip
                       if anchored and abs(self.held_slip or 0.0) <= ASSUMED_SLIP_STD else None)
 
