@@ -24,8 +24,11 @@ object per sample; malformed or big-endian bytes are counted as rejections). Mea
 250 Hz IMU + 10 Hz wheels (``slip-estimator bench --only live``, docs/performance.md): the
 executor and the per-message objects were most of the node's CPU.
 
-How the node spins (the events executor, input batches, the output step, gc), how every
-callback is timed and how it stops: :mod:`slip_estimator.ros.spin`.
+Under :func:`~slip_estimator.ros.spin.spin` with batches (``input_batch_period_s`` > 0) the
+executor does not see the input subscriptions (:attr:`SlipEstimatorNode.subscriptions`): the
+spin loop takes their messages itself (:meth:`SlipEstimatorNode.handle_ready_inputs`) and runs
+the same callbacks. How the node spins (the events executor, input batches, the output step,
+gc), how every callback is timed and how it stops: :mod:`slip_estimator.ros.spin`.
 
 Parameters
 ----------
@@ -47,6 +50,8 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Iterator
+from operator import itemgetter
 from typing import Any
 
 import rclpy
@@ -62,6 +67,7 @@ from rclpy.qos import (
     QoSProfile,
     ReliabilityPolicy,
 )
+from rclpy.subscription import Subscription
 from std_srvs.srv import Trigger
 
 from slip_estimator.core.params import (
@@ -130,6 +136,10 @@ class SlipEstimatorNode(Node):
     Raises :class:`ParameterError` from the constructor when a parameter is invalid.
     """
 
+    inputs_taken_by_spin = False
+    """True while :func:`spin` takes the input messages itself (:meth:`handle_ready_inputs`):
+    the input subscriptions are then not among :attr:`subscriptions`, which executors read."""
+
     def __init__(self, node_name: str = NODE_NAME, *, param_files: list[str] | None = None,
                  **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
@@ -150,7 +160,7 @@ class SlipEstimatorNode(Node):
         self._pubs = {topic: self.create_publisher(
             cls, topic, output_qos(100 if topic in (TOPIC_SLIP, TOPIC_SLIP_RATIO) else 10))
             for topic, cls in OUTPUT_TYPES.items()}
-        self._subs = []
+        self._subs: list[Subscription] = []
         for topic, cls in self.adapter.input_types.items():
             depth = IMU_QUEUE_DEPTH if topic == TOPIC_IMU else WHEEL_QUEUE_DEPTH
             self._subs.append(self.create_subscription(
@@ -261,6 +271,26 @@ class SlipEstimatorNode(Node):
             if is_imu:
                 self._imu_durations.add(seconds)
         return callback
+
+    @property
+    def subscriptions(self) -> Iterator[Subscription]:
+        """The subscriptions an executor handles (rclpy's, without the inputs while
+        :attr:`inputs_taken_by_spin`)."""
+        if self.inputs_taken_by_spin:
+            return (sub for sub in super().subscriptions if sub not in self._subs)
+        return super().subscriptions
+
+    def handle_ready_inputs(self) -> None:
+        """Take every input message that has arrived (serialized) and run its callback, in
+        arrival order over the inputs (the RMW's reception stamps; 0 where it gives none)."""
+        batch = []
+        for sub in self._subs:
+            take, msg_type, callback = sub.handle.take_message, sub.msg_type, sub.callback
+            while (taken := take(msg_type, True)) is not None:
+                batch.append((taken[1]['received_timestamp'] or 0, callback, taken[0]))
+        batch.sort(key=itemgetter(0))
+        for _, callback, raw in batch:
+            callback(raw)
 
     def _emit(self, outputs: list[Output]) -> None:
         """Publish ``outputs`` now, or queue them for the output step under :func:`spin`."""

@@ -4,15 +4,25 @@ Spin loop
 ---------
 Jazzy's ``rclpy.experimental.EventsExecutor`` in a ``spin_once`` loop (its ``spin()`` would
 hold the GIL from other Python threads); without it, the ``SingleThreadedExecutor``. One round:
-wait for the first ready event, handle every input message that is ready, one callback per
-message in arrival order, back to back; publish what they gave (the output step); sleep
-``input_batch_period_s`` (read-only node parameter, default 0.01 s; 0 wakes for every
-message); the next round handles what arrived meanwhile.
+wait ``input_batch_period_s`` (read-only node parameter, default 0.01 s) in the executor, which
+runs the timers and services meanwhile; take every input message that arrived from the
+subscriptions directly (rclpy's ``take_message``, serialized bytes) and handle them in arrival
+order (the RMW's reception stamps), one callback per message, back to back; publish what they
+gave (the output step). ``input_batch_period_s`` 0 wakes for every message instead: the
+subscriptions are then the executor's, and a round handles what is ready after the first.
+
+Taken by the loop, the inputs never pass through the executor: it would wake, take and call
+back one message at a time (about 80 us of CPU per message at 250 Hz, docs/performance.md,
+"Live node, fifth pass"), and the callbacks of a batch run back to back, warm. Reception
+stamps order the messages of the two topics as the executor did; two messages of different
+topics that arrive while the round is taking them can be handled in the other order (the
+core waits for the IMU to reach a wheel sample's stamp, the replay does not use this loop).
+The input queues (KEEP_LAST 500 for the IMU, 2 s at 250 Hz) hold far more than a period.
 
 Batches: a callback that runs right after another one finds the interpreter's and the
 estimator's data in the caches; one woken alone, 4 ms after the last, does not (about 0.3 ms
 of CPU per IMU callback then, against about 0.1 ms warm). The price is up to that period of
-extra latency of the outputs; the input queues (2 s at 250 Hz) absorb far more.
+extra latency of the outputs.
 
 The output step: under :func:`spin` the input callbacks and the watchdog timer do not
 publish; their outputs wait, in the order the adapter gave them, for the end of the round,
@@ -74,7 +84,8 @@ SPIN_ONCE_TIMEOUT_S = 0.5
 
 def spin(node: Any) -> None:
     """Spin ``node`` (a :class:`~slip_estimator.ros.node.SlipEstimatorNode`: it counts
-    ``input_callbacks``, has ``input_batch_period_s``, queues its outputs while
+    ``input_callbacks``, has ``input_batch_period_s``, takes its inputs itself in
+    ``handle_ready_inputs`` while ``inputs_taken_by_spin``, queues its outputs while
     ``output_steps`` and publishes them in ``publish_outputs``) until rclpy shuts down, in
     rounds (see the module's Spin loop section)."""
     try:
@@ -82,23 +93,28 @@ def spin(node: Any) -> None:
         executor = EventsExecutor(context=node.context)
     except (ImportError, AttributeError):
         executor = SingleThreadedExecutor(context=node.context)
-    executor.add_node(node)
+    period_s = node.input_batch_period_s
+    node.inputs_taken_by_spin = period_s > 0.0  # before add_node: the executor skips them
     node.output_steps = True
+    executor.add_node(node)
     gc.collect()
     gc.freeze()
     try:
         while node.context.ok():
-            executor.spin_once(timeout_sec=SPIN_ONCE_TIMEOUT_S)  # the first (waits for it)
-            handled = -1
-            while handled != node.input_callbacks:  # the rest, until none was ready
-                handled = node.input_callbacks
-                executor.spin_once(timeout_sec=0.0)
+            if period_s:
+                executor.spin_once(timeout_sec=period_s)  # timers, services; or the period
+                node.handle_ready_inputs()
+            else:
+                executor.spin_once(timeout_sec=SPIN_ONCE_TIMEOUT_S)  # the first (waits)
+                handled = -1
+                while handled != node.input_callbacks:  # the rest, until none was ready
+                    handled = node.input_callbacks
+                    executor.spin_once(timeout_sec=0.0)
             node.publish_outputs()
-            if node.input_batch_period_s:
-                time.sleep(node.input_batch_period_s)
     finally:
         node.output_steps = False
         executor.shutdown(timeout_sec=1.0)
+        node.inputs_taken_by_spin = False
 
 
 class CallbackDurations:

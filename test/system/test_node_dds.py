@@ -94,12 +94,14 @@ def n_odometry_played(messages: list) -> int:
     return int((stamps[-1] - stamps[0]) * 1e-9 * 20)
 
 
-def test_node_over_dds(ros_context, tmp_path):
+@pytest.mark.parametrize('batch', [[], ['-p', 'input_batch_period_s:=0']],
+                         ids=['inputs taken in batches', 'woken per message'])
+def test_node_over_dds(ros_context, tmp_path, batch):
     params_file = tmp_path / 'params.yaml'
     save_params(synthetic_params(), params_file)
     proc = subprocess.Popen(
         [sys.executable, '-m', 'slip_estimator.ros.node', '--ros-args',
-         '--params-file', str(params_file), '-p', 'odometry_rate_hz:=20'],
+         '--params-file', str(params_file), '-p', 'odometry_rate_hz:=20', *batch],
         env=node_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     node = rclpy.create_node('bag_player', context=ros_context)
     executor = SingleThreadedExecutor(context=ros_context)

@@ -14,7 +14,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 from std_srvs.srv import Trigger
 
 from slip_estimator.paramfile import save_params
@@ -22,6 +22,11 @@ from slip_estimator.paramfile import save_params
 sys.path.insert(0, str(Path(__file__).parent))
 from test_node_dds import kv, node_env, ros_context, stop_node, wait_for  # noqa: E402,F401
 from helpers import synthetic_messages, synthetic_params  # noqa: E402
+
+def rclpy_node(context):
+    import rclpy
+    return rclpy.create_node('player', context=context)
+
 
 NODE = [sys.executable, '-m', 'slip_estimator.ros.node', '--ros-args']
 
@@ -178,3 +183,55 @@ def test_invalid_input_batch_period_refuses_to_start(value):
     """``input_batch_period_s`` out of [0, 0.1] s, or not a number: one line, exit 2."""
     rc, out = run_briefly(['-p', f'input_batch_period_s:={value}'], seconds=60.0)
     assert rc == 2 and 'input_batch_period_s' in out and 'from 0 to 0.1' in out, out
+
+
+def test_spin_takes_the_inputs_in_arrival_order(ros_context):
+    """Under the spin loop's batches the executor does not see the input subscriptions, and
+    :meth:`handle_ready_inputs` handles every message that arrived, interleaved IMU and wheel
+    messages in the order they were sent (reception stamps), each through its callback."""
+    from rclpy.experimental import EventsExecutor
+
+    from slip_estimator.ros.node import SlipEstimatorNode
+
+    node = SlipEstimatorNode(context=ros_context)
+    node_player = None
+    try:
+        handled: list[str] = []
+        inputs = list(node._subs)
+
+        def recording(topic, callback):
+            def run(raw):
+                handled.append(topic)
+                callback(raw)
+            return run
+        for sub, topic in zip(inputs, ('/imu/data', '/joint_states')):
+            sub.callback = recording(topic, sub.callback)
+        node.inputs_taken_by_spin = True
+        assert not set(node.subscriptions) & set(inputs)
+        executor = EventsExecutor(context=ros_context)
+        executor.add_node(node)  # as spin() does: the executor must not take the inputs
+        node_player = rclpy_node(ros_context)
+        pubs = {'/imu/data': node_player.create_publisher(Imu, '/imu/data', QoSProfile(depth=500)),
+                '/joint_states': node_player.create_publisher(JointState, '/joint_states',
+                                                              QoSProfile(depth=100))}
+        wait_for(lambda: all(p.get_subscription_count() for p in pubs.values()), 30.0,
+                 'discovery')
+        time.sleep(0.5)
+        sent = [topic for topic, _, _ in synthetic_messages(stationary_s=0.4, drive_s=0.0)]
+        for topic, msg, _ in synthetic_messages(stationary_s=0.4, drive_s=0.0):
+            pubs[topic].publish(msg)
+            time.sleep(0.0005)
+        time.sleep(0.5)
+        for _ in range(5):
+            executor.spin_once(timeout_sec=0.05)  # timers and services only
+        assert handled == []
+        node.handle_ready_inputs()
+        assert handled == sent and node.input_callbacks == len(sent)
+        assert node.adapter.received['/joint_states'] == sent.count('/joint_states')
+        assert sent.count('/joint_states') > 1
+        executor.shutdown()
+    finally:
+        node.inputs_taken_by_spin = False
+        if node_player is not None:
+            node_player.destroy_node()
+        node.destroy_node()
