@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 import pytest
+import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
@@ -22,11 +23,6 @@ from slip_estimator.paramfile import save_params
 sys.path.insert(0, str(Path(__file__).parent))
 from test_node_dds import kv, node_env, ros_context, stop_node, wait_for  # noqa: E402,F401
 from helpers import synthetic_messages, synthetic_params  # noqa: E402
-
-def rclpy_node(context):
-    import rclpy
-    return rclpy.create_node('player', context=context)
-
 
 NODE = [sys.executable, '-m', 'slip_estimator.ros.node', '--ros-args']
 
@@ -194,6 +190,7 @@ def test_spin_takes_the_inputs_in_arrival_order(ros_context):
     from slip_estimator.ros.node import SlipEstimatorNode
 
     node = SlipEstimatorNode(context=ros_context)
+    executor = EventsExecutor(context=ros_context)
     node_player = None
     try:
         handled: list[str] = []
@@ -208,17 +205,17 @@ def test_spin_takes_the_inputs_in_arrival_order(ros_context):
             sub.callback = recording(topic, sub.callback)
         node.inputs_taken_by_spin = True
         assert not set(node.subscriptions) & set(inputs)
-        executor = EventsExecutor(context=ros_context)
         executor.add_node(node)  # as spin() does: the executor must not take the inputs
-        node_player = rclpy_node(ros_context)
+        node_player = rclpy.create_node('player', context=ros_context)
         pubs = {'/imu/data': node_player.create_publisher(Imu, '/imu/data', QoSProfile(depth=500)),
                 '/joint_states': node_player.create_publisher(JointState, '/joint_states',
                                                               QoSProfile(depth=100))}
         wait_for(lambda: all(p.get_subscription_count() for p in pubs.values()), 30.0,
                  'discovery')
         time.sleep(0.5)
-        sent = [topic for topic, _, _ in synthetic_messages(stationary_s=0.4, drive_s=0.0)]
-        for topic, msg, _ in synthetic_messages(stationary_s=0.4, drive_s=0.0):
+        messages = synthetic_messages(stationary_s=0.4, drive_s=0.0)
+        sent = [topic for topic, _, _ in messages]
+        for topic, msg, _ in messages:
             pubs[topic].publish(msg)
             time.sleep(0.0005)
         time.sleep(0.5)
@@ -229,8 +226,8 @@ def test_spin_takes_the_inputs_in_arrival_order(ros_context):
         assert handled == sent and node.input_callbacks == len(sent)
         assert node.adapter.received['/joint_states'] == sent.count('/joint_states')
         assert sent.count('/joint_states') > 1
-        executor.shutdown()
     finally:
+        executor.shutdown()
         node.inputs_taken_by_spin = False
         if node_player is not None:
             node_player.destroy_node()
