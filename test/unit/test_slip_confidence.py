@@ -89,7 +89,10 @@ def test_a_reading_whose_published_sigma_is_wider_than_the_medium_class_must_res
     published 1-sigma sqrt(sd^2 + 0.09 * 0.3^2) = 0.09, within the medium class's 0.2: the
     class stays medium. With an unseen change of 1 m/s on top (1 / sqrt(3) = 0.58, the
     published 1-sigma 0.58, wider than the class): beyond 0.2 with Phi(0.1 / 0.58) = 0.57,
-    below RESOLVED_P: low, unresolved. A resolved medium hold (0.3) keeps the class medium."""
+    below RESOLVED_P: low, unresolved. A reading of 0.6 (body 0.4) with an unseen change of
+    3 m/s: its published 1-sigma at the cap of 1 (the slip unknown), beyond 0.2 with
+    Phi(0.4) = 0.66, yet low, unresolved. A resolved medium hold (0.3) keeps the class
+    medium."""
     p, wheel = Params(), WheelSample(7, 1.0)
     narrow = slip_estimate(wheel, 0.7, 0.0, 1e-4, p, False, 1.0, held_slip=0.05,
                            confidence=Confidence(0.0, 0.1, 0.0, 0.05, 0.9))
@@ -101,6 +104,10 @@ def test_a_reading_whose_published_sigma_is_wider_than_the_medium_class_must_res
     assert wide.slip_ratio_std > MEDIUM_CLASS_WIDTH
     assert p_beyond_medium_bound(0.3, wide.slip_ratio_std) < RESOLVED_P
     assert (wide.slip_class, wide.resolved, wide.slip_ratio) == (1, False, pytest.approx(0.3))
+    unknown = slip_estimate(wheel, 0.4, 0.0, 1e-4, p, False, 1.0, held_slip=0.05,
+                            confidence=Confidence(resolution_var_mps2(3.0), 0.1, 0.0, 0.05, 0.9))
+    assert unknown.slip_ratio_std == 1.0 and p_beyond_medium_bound(0.6, 1.0) > RESOLVED_P
+    assert (unknown.slip_class, unknown.resolved) == (1, False)
     held = slip_estimate(wheel, 0.7, 0.0, 1e-4, p, False, 1.0, held_slip=0.3,
                          confidence=wide_c._replace(s_held=0.3))
     assert held.slip_ratio_std > MEDIUM_CLASS_WIDTH and (held.slip_class, held.resolved) == \
