@@ -1,6 +1,7 @@
 """What the published slip's 1-sigma and its probability of medium-or-worse slip add to the
 filter's reading: the planner's contract (issue 27, deliverable 3). Nothing here feeds back
-into the filter or the class (standard library only).
+into the filter; the class uses the published 1-sigma only where it is wider than the medium
+class (:func:`~slip_estimator.core.outputs._resolved`; standard library only).
 
 Two things the filter's velocity covariance does not know, both measured online:
 

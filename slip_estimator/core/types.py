@@ -96,8 +96,9 @@ class SlipEstimate:
         reading's side), allowing for a wrong reading
         (:mod:`slip_estimator.core.slip_confidence`); NaN when unknown.
     resolved : the class is one the slip and its 1-sigma resolve; False where a medium-or-worse
-        reading is within its error (or the rim's timing) of the low class and no resolved
-        hold supports it (then ``slip_class`` is low).
+        reading is within its error (the filter's, or the published one where that is wider
+        than the medium class; or the rim's timing) of the low class and no resolved hold
+        supports it (then ``slip_class`` is low).
     """
 
     stamp_ns: int
