@@ -95,6 +95,25 @@ def test_fallback_advances_at_the_rim_speed_along_the_heading_then_resumes_witho
     assert guard.figures()[0]['odometry_fallback_share'] == 0.5
 
 
+def test_a_changing_rim_advances_the_fallback_but_the_twist_is_the_fused_speed():
+    """Braking from 1 m/s: the rim speed's count difference (0.8 m/s) still advances the
+    track (1 s north: (0, 0.8, 0)), but it lags the body, so the fused twist (0.3 m/s) and
+    its covariance are published; at a steady rim the rim speed is again the twist."""
+    guard = OdometryGuard()
+    guard.wheel(decide(_slip(0.8, 0.0, 4), 0.5 ** 2, False, 3.5, rim_steady=False))
+    north = 0.5 * math.pi
+    guard.publish(_odometry(0.0, (0.0, 0.0, 0.0), north))
+    out = guard.publish(_odometry(1.0, (0.3, 0.0, 0.0), north))
+    np.testing.assert_allclose(out.p_ob_o, (0.0, 0.8, 0.0), atol=1e-12)
+    np.testing.assert_allclose(out.v_ob_b, (0.3, 0.01, 0.0))
+    assert out.twist_covariance[0, 0] == pytest.approx(1e-3)
+    assert guard.fallback and guard.figures()[0]['odometry_fallback_share'] == 1.0
+    guard.wheel(decide(_slip(0.8, 0.0, 4), 0.5 ** 2, False, 3.5, rim_steady=True))
+    out = guard.publish(_odometry(2.0, (0.6, 0.0, 0.0), north))
+    np.testing.assert_allclose(out.p_ob_o, (0.0, 1.6, 0.0), atol=1e-12)
+    np.testing.assert_allclose(out.v_ob_b, (0.8, 0.0, 0.0))
+
+
 def test_fallback_through_a_quarter_circle_ends_at_radius_radius():
     """1 m/s at pi/20 rad/s for 10 s from the origin heading east (fused position frozen):
     a quarter circle of radius 20/pi m ends at (R, R), to the step's first-order error."""

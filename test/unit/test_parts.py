@@ -26,7 +26,7 @@ from slip_estimator.core.params import (
 )
 from slip_estimator.core.planet import EARTH, gravity_n
 from slip_estimator.core.slip_model.aided_record import ANCHOR_S, AidedRecord
-from slip_estimator.core.slip_model.rim_memory import MEMORY_S, RimMemory
+from slip_estimator.core.slip_model.rim_memory import MEMORY_S, RimMemory, rim_steady
 from slip_estimator.core.slip import p_beyond_medium_bound
 from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
@@ -666,6 +666,20 @@ def test_a_rim_slowing_through_the_threshold_by_the_stamp_is_a_stop():
         assert not any(aid.stopping(WheelSample(k * ns, w)) for k, w in enumerate(rims))
 
 
+def test_the_odometry_guard_is_told_whether_the_rim_speed_is_steady():
+    """Braking 1.0 -> 0.6 m/s between two wheel samples: the guard's verdict carries an
+    unsteady rim (its count difference lags the body: the fused twist is published); a
+    following 0.6 m/s is steady (``WheelAid.stopping`` sees every sample)."""
+    ns = 100_000_000
+    aid = WheelAid(Params())
+    est = slip_estimate(WheelSample(ns, 0.6), 0.6, 0.0, 1e-4, Params(), False, 1.0)
+    steady = []
+    for k, w in enumerate((1.0, 0.6, 0.6)):
+        aid.stopping(WheelSample(k * ns, w))
+        steady.append(aid.odometry_decision(est).rim_steady)
+    assert steady == [False, False, True]
+
+
 @pytest.mark.parametrize('rate_hz', [10.0, 50.0])
 def test_the_rim_memory_knows_when_the_rim_began_to_move(rate_hz):
     # A commanded rate change: 0.5 m/s, then a ramp to 0.6 m/s over 0.5 s starting at 1.0 s.
@@ -678,6 +692,8 @@ def test_the_rim_memory_knows_when_the_rim_began_to_move(rate_hz):
     # the last sample within 10 % of the change from the end (0.51 m/s at 1.05 s)
     assert rim.onset_ns(0.6) * 1e-9 == pytest.approx(1.05, abs=1.0 / rate_hz)
     assert not rim.add(int(1.9e9), 0.7)  # a jump is not steady
+    # 5 % of the new rim speed plus 1 cm/s: 1.0 -> 1.059 m/s is steady, 1.0 -> 0.939 is not
+    assert rim_steady(1.0, 1.059) and not rim_steady(1.0, 0.939) and not rim_steady(None, 1.0)
     rim.add(int((1.9 + MEMORY_S) * 1e9), 0.7)
     assert rim.moved_mps(0.7) == pytest.approx(0.0)  # the ramp is forgotten
 

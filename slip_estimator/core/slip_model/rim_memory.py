@@ -15,6 +15,12 @@ _ONSET_FRACTION = 0.1
 change from now."""
 
 
+def rim_steady(previous_mps: float | None, w: float) -> bool:
+    """The rim speed ``w`` (m/s) is steady: it moved by less than ``STEADY_FRACTION`` of itself
+    plus 1 cm/s since the last sample's ``previous_mps`` (None: no last sample)."""
+    return previous_mps is not None and abs(w - previous_mps) <= STEADY_FRACTION * abs(w) + 0.01
+
+
 class RimMemory:
     """The moving rim speeds of the last ``MEMORY_S``."""
 
@@ -28,8 +34,7 @@ class RimMemory:
 
     def add(self, t_ns: int, w: float) -> bool:
         """Remember the rim speed ``w`` (m/s) at ``t_ns``; True when it is steady."""
-        steady = self.last_mps is not None and \
-            abs(w - self.last_mps) <= STEADY_FRACTION * abs(w) + 0.01
+        steady = rim_steady(self.last_mps, w)
         self.last_mps = w
         recent = self._recent
         recent.append((t_ns, w))

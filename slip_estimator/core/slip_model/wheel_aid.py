@@ -21,6 +21,7 @@ from slip_estimator.core.slip_confidence import Confidence, ReadingRecord
 from slip_estimator.core.slip_model.aid_decision import AidDecision
 from slip_estimator.core.slip_model.chain import ASSUMED_SLIP_STD
 from slip_estimator.core.slip_model.model import Mode, SlipModel
+from slip_estimator.core.slip_model.rim_memory import rim_steady
 from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.types import SlipEstimate, WheelSample
 
@@ -37,6 +38,7 @@ class WheelAid:
         self._aid_std_mps = own.wheel_aid_std_mps
         self._latency_s = params.wheel_latency_s
         self._last: tuple[int, float] | None = None  # (stamp ns, rim speed m/s) of the last sample
+        self._rim_steady = False  # the last sample's rim speed moved little from the one before
         self._resolving_sigmas = own.slip_change_sigma
         self.slip_model = SlipModel(params)
         self.readings = ReadingRecord()
@@ -59,6 +61,7 @@ class WheelAid:
         held = self.slip_model.stopping(wheel.stamp_ns, wheel.rim_speed_mps,
                                         awaits_aid=self._mode == 'hold')
         last, self._last = self._last, (wheel.stamp_ns, wheel.rim_speed_mps)
+        self._rim_steady = rim_steady(None if last is None else last[1], wheel.rim_speed_mps)
         return held or self._stops_by_stamp(wheel, last)
 
     def _stops_by_stamp(self, wheel: WheelSample, last: tuple[int, float] | None) -> bool:
@@ -119,13 +122,15 @@ class WheelAid:
         chained one on an INS that cannot resolve slip is no better than the raw rim speed,
         and a wrong one far worse (a consumer IMU's no-slip drive ended 4.8 m off carrying
         its anchored holds, 2.8 m at the raw rim speed; test17run's ground slips by ~0.05,
-        and carrying it takes the plain forward-speed RMSE 0.0444 -> 0.0403 m/s))."""
+        and carrying it takes the plain forward-speed RMSE 0.0444 -> 0.0403 m/s)). Only at a
+        steady rim speed (:func:`~.rim_memory.rim_steady`, from :meth:`stopping`)."""
         model = self.slip_model
         chain = model.chain
         anchored = not chain.assumed and chain.chain_var == 0.0
         return decide(est, ins_speed_error_var(model.spread_var, SCALES_S), anchored,
                       self._resolving_sigmas, self.held_slip
-                      if anchored and abs(self.held_slip or 0.0) <= ASSUMED_SLIP_STD else None)
+                      if anchored and abs(self.held_slip or 0.0) <= ASSUMED_SLIP_STD else None,
+                      self._rim_steady)
 
     def decide(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate,
                C_b_n: np.ndarray, turning: bool, tilt_std_rad: float = 0.0,
