@@ -114,6 +114,38 @@ def test_a_changing_rim_advances_the_fallback_but_the_twist_is_the_fused_speed()
     np.testing.assert_allclose(out.v_ob_b, (0.8, 0.0, 0.0))
 
 
+def test_a_fallback_of_a_measuring_span_holds_through_still_wheels():
+    """In fallback at 1 m/s for 3 s (beyond the 2.5-s measuring span), then the wheels stop
+    (class 'none'): the fused position jumps 0.2 m at rest (the stop's zero-velocity
+    correction) and the published one stays at 3 m, named as held through a stop; a moving
+    verdict on a fine INS ends the fallback, and the fused increments follow again. A
+    fallback of 1 s (a rim slowing into the stop) does not hold, nor does a still verdict
+    without a fallback before it."""
+    def still(t_s: float) -> GuardDecision:
+        return decide(SlipEstimate(round(t_s * NS), 0.0, 0.1, 0, 0.0, 0.1, 0.0), 0.5 ** 2,
+                      False, 3.5)
+    guard = OdometryGuard()
+    guard.wheel(decide(_slip(1.0, 0.0, 4), 0.5 ** 2, False, 3.5))  # at t = 0
+    guard.publish(_odometry(0.0, (0.0, 0.0, 0.0), 0.0))
+    guard.publish(_odometry(3.0, (1.5, 0.0, 0.0), 0.0))
+    assert still(3.0).still and not still(3.0).fallback
+    guard.wheel(still(3.0))
+    out = guard.publish(_odometry(4.0, (1.7, 0.0, 0.0), 0.0))
+    np.testing.assert_allclose(out.p_ob_o, (3.0, 0.0, 0.0), atol=1e-12)
+    assert guard.fallback and 'held through a stop' in guard.figures()[1]
+    guard.wheel(decide(_slip(1.0, 0.98), 0.01 ** 2, False, 3.5))
+    out = guard.publish(_odometry(5.0, (2.7, 0.0, 0.0), 0.0))
+    np.testing.assert_allclose(out.p_ob_o, (4.0, 0.0, 0.0), atol=1e-12)
+    short = OdometryGuard()
+    short.wheel(decide(_slip(1.0, 0.0, 4), 0.5 ** 2, False, 3.5))
+    short.wheel(still(1.0))
+    assert not short.fallback
+    fresh = OdometryGuard()
+    fresh.wheel(still(3.0))
+    odo = _odometry(1.0, (3.0, 4.0, 0.5), 0.3)
+    assert not fresh.fallback and fresh.publish(odo) is odo
+
+
 def test_fallback_through_a_quarter_circle_ends_at_radius_radius():
     """1 m/s at pi/20 rad/s for 10 s from the origin heading east (fused position frozen):
     a quarter circle of radius 20/pi m ends at (R, R), to the step's first-order error."""

@@ -524,7 +524,7 @@ def test_a_start_from_rest_on_a_coarse_ins_takes_the_wheels_as_the_ground():
     assert coarse_ins(0.09, 0.8) and not coarse_ins(9e-4, 0.8)
     chain = SlipChain(Params())
     assert chain.settle(-0.34, None, 0.8, 0.09, 0.08, True, False, False,
-                        coarse_start=True) == 0.0
+                        start_speed_var=0.09) == 0.0
     assert chain.baseline == 0.0 and chain.assumed
     assert chain.held_speed_var_mps2(0.8, 0.09) == pytest.approx((0.1 * 0.8) ** 2)
     assert chain.settle(-0.34, None, 0.8, 0.09, 0.08, True, False, False) == -0.34
@@ -533,3 +533,23 @@ def test_a_start_from_rest_on_a_coarse_ins_takes_the_wheels_as_the_ground():
     for k in range(40):  # a start without the filter's prediction measures the ground
         model.step(int(k * 1e8), 0.8, 0.6, 0.6, True, False)
     assert model.slip_hold == pytest.approx(0.25)
+
+
+def test_a_start_from_rest_resolves_the_ground_only_within_the_assumed_slip_sigma():
+    """At 0.8 m/s a start whose speed sigma is 0.06 m/s (0.075 of the rim speed, within
+    ASSUMED_SLIP_STD = 0.1) places the ground: 0.05 is the resolved ground. A later start at
+    0.1 m/s (0.125: not coarse, under 0.15, but no better than assuming zero slip) holds its
+    reading of 0.09 as the baseline, while the resolved ground stays 0.05; a coarse start
+    (0.3 m/s) leaves it too."""
+    from slip_estimator.core.slip_model.chain import SlipChain
+    chain = SlipChain(Params())
+    assert chain.ground is None
+    assert chain.settle(0.05, None, 0.8, 0.09, 0.08, True, False, False,
+                        start_speed_var=0.06 ** 2) == 0.05
+    assert chain.ground == 0.05
+    assert chain.settle(0.09, None, 0.8, 0.09, 0.08, True, False, False,
+                        start_speed_var=0.1 ** 2) == 0.09
+    assert chain.baseline == 0.09 and not chain.assumed and chain.ground == 0.05
+    assert chain.settle(0.3, None, 0.8, 0.09, 0.08, True, False, False,
+                        start_speed_var=0.3 ** 2) == 0.0
+    assert chain.assumed and chain.ground == 0.05

@@ -19,6 +19,9 @@ the next until a stop or a return to the ground measured after the last start:
 * **ratchet.** Body-side changes in one direction, each alarm firing as soon as the step
   test could after the last hold, are one free-INS excursion unless together they beat the
   drift of their whole span: back to the hold before them (``RUN_GAP_S``);
+* **ground.** A start from rest places the ground's slip to the filter's speed sigma at its
+  end; only within ``ASSUMED_SLIP_STD`` of the rim speed is that better than assuming zero
+  slip, and only such a baseline is the resolved ``ground`` (the odometry guard carries it);
 * **assumed.** After a start in motion nothing measured the ground: a slip the INS could not
   place is assumed (zero, the wheels' speed) and carries ``ASSUMED_SLIP_STD``; an INS too
   coarse to place a slip within the low class takes zero as its baseline until a stop.
@@ -66,6 +69,9 @@ class SlipChain:
         self.params = params
         self.baseline: float | None = None
         self.baseline_pitch_rad: float | None = None  # the pitch it was measured at
+        self.ground: float | None = None
+        """the last baseline its start placed within ``ASSUMED_SLIP_STD`` (1-sigma): the
+        ground's slip as far as this drive has resolved it (kept across stops)"""
         self.reset()
 
     def reset(self) -> None:
@@ -79,7 +85,7 @@ class SlipChain:
                wheel_change_mps: float, from_rest: bool, unmeasured: bool,
                implausible_run_ahead: bool, pitch_rad: float = 0.0,
                pitch_std_rad: float = 0.0, body_span_s: float | None = None,
-               spread_scale_s: float = 1.0, coarse_start: bool = False,
+               spread_scale_s: float = 1.0, start_speed_var: float = 0.0,
                body_window_s: tuple[float, float] | None = None) -> float:
         """The slip to hold after a measurement of ``measured`` at rim speed ``w`` and pitch
         ``pitch_rad`` (1-sigma ``pitch_std_rad``).
@@ -92,8 +98,10 @@ class SlipChain:
         implausible_run_ahead : a run-ahead no slope explains was measured.
         body_span_s : for a body-side change, the time its free INS integrated over, s.
         spread_scale_s : the span ``spread_var`` refers to, s.
-        coarse_start : a start from rest whose measured speed the filter knows too coarse to
-            place the slip within the low class (:func:`coarse_ins` of its own variance).
+        start_speed_var : for a start from rest, the filter's forward-speed variance at the
+            end of its measurement, m^2/s^2: too coarse to place the slip within the low class
+            (:func:`coarse_ins`), zero is the baseline; within ``ASSUMED_SLIP_STD`` of the rim
+            speed, the baseline is also the resolved ``ground``.
         body_window_s : for any body-side change, (its continuity anchor, its end), s.
         """
         p = self.params
@@ -118,11 +126,14 @@ class SlipChain:
             # An INS the filter knows too coarse to place the ground's slip within the low
             # class (a vibrating 30-Hz consumer IMU read s = -0.34 after a stop, truth 0)
             # takes the wheels' speed as the baseline, assumed, as after a start in motion.
-            coarse = coarse_start
+            coarse = coarse_ins(start_speed_var, w)
             if coarse:
                 measured = 0.0
             self.baseline, self.assumed, self.chain_var = measured, coarse, 0.0
             self.baseline_pitch_rad = pitch_rad
+            if math.sqrt(start_speed_var) <= ASSUMED_SLIP_STD * abs(w):
+                # Better placed than the assumed zero slip: the ground, resolved.
+                self.ground = measured
             return measured
         # Each change measured from the held model before it adds its INS error to the
         # model's: the chain's spread since the last anchor (a start from rest, or a return to

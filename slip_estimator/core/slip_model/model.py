@@ -209,7 +209,6 @@ class SlipModel:
         # a start from rest to the speed's variance at the end of its measurement.
         drifting = self._measurement.drifting()
         body_span_s = self._measurement.body_span_s() if self._predicted_coarse(w) else None
-        coarse_start = self._from_rest and coarse_ins(self._speed_var, w)
         anchor = self._measurement.anchor
         body_window_s = (anchor.t_ns * 1e-9, self._last_t_ns * 1e-9) \
             if anchor is not None and anchor.body else None
@@ -223,7 +222,7 @@ class SlipModel:
         return self.chain.settle(
             measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
             from_rest, unmeasured, not from_rest and ra.implausible(measured), ra.pitch_rad,
-            self._pitch_std_rad, body_span_s, SCALES_S[-1], coarse_start, body_window_s)
+            self._pitch_std_rad, body_span_s, SCALES_S[-1], self._speed_var, body_window_s)
 
     def held_speed_var_mps2(self, w: float) -> float:
         """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided

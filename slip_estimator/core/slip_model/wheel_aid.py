@@ -117,19 +117,24 @@ class WheelAid:
     def odometry_decision(self, est: SlipEstimate) -> GuardDecision:
         """Whether the published odometry falls back to wheels + gyro at this sample
         (:func:`~slip_estimator.core.odometry_guard.decide` on the slip model's INS spread; a
-        hold measured from rest with no change chained to it is anchored, and only such a
-        hold, within half the low class (``ASSUMED_SLIP_STD``), is carried by the fallback: a
-        chained one on an INS that cannot resolve slip is no better than the raw rim speed,
-        and a wrong one far worse (a consumer IMU's no-slip drive ended 4.8 m off carrying
-        its anchored holds, 2.8 m at the raw rim speed; test17run's ground slips by ~0.05,
-        and carrying it takes the plain forward-speed RMSE 0.0444 -> 0.0403 m/s)). Only at a
-        steady rim speed (:func:`~.rim_memory.rim_steady`, from :meth:`stopping`)."""
+        hold measured from rest with no change chained to it is anchored, and only on such a
+        hold does the fallback carry a slip: the ground's as a start resolved it
+        (``SlipChain.ground``: placed within ``ASSUMED_SLIP_STD``, better than assuming zero
+        slip), if within half the low class (``ASSUMED_SLIP_STD``). A chained one on an INS
+        that cannot resolve slip is no better than the raw rim speed, and a wrong one far
+        worse (a consumer IMU's no-slip drive ended 4.8 m off carrying its anchored holds,
+        2.8 m at the raw rim speed; another, 3.76 m against 3.42 at the rim speed, carrying
+        s = 0.062 read at a start whose speed sigma was 0.145 of the rim speed);
+        test17run's ground slips by ~0.05, and carrying it takes the plain forward-speed RMSE
+        0.0444 -> 0.0403 m/s)). Only at a steady rim speed (:func:`~.rim_memory.rim_steady`,
+        from :meth:`stopping`)."""
         model = self.slip_model
         chain = model.chain
         anchored = not chain.assumed and chain.chain_var == 0.0
+        ground = chain.ground if self.held_slip is not None else None
         return decide(est, ins_speed_error_var(model.spread_var, SCALES_S), anchored,
-                      self._resolving_sigmas, self.held_slip
-                      if anchored and abs(self.held_slip or 0.0) <= ASSUMED_SLIP_STD else None,
+                      self._resolving_sigmas, ground
+                      if anchored and abs(ground or 0.0) <= ASSUMED_SLIP_STD else None,
                       self._rim_steady)
 
     def decide(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate,
