@@ -254,7 +254,7 @@ def live_worker(args: argparse.Namespace) -> int:
 
     from slip_estimator.ros.adapter import TOPIC_DIAGNOSTICS, TOPIC_IMU, TOPIC_ODOMETRY
     from slip_estimator.ros.convert import header_stamp_ns
-    from slip_estimator.ros.node import input_qos, output_qos
+    from slip_estimator.ros.qos import input_qos, output_qos
 
     drive = _live_drive(args)
     # A best-effort sensor publisher (as IMU drivers are) and reliable listeners: the node's

@@ -61,12 +61,6 @@ from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import (
-    DurabilityPolicy,
-    HistoryPolicy,
-    QoSProfile,
-    ReliabilityPolicy,
-)
 from rclpy.subscription import Subscription
 from std_srvs.srv import Trigger
 
@@ -88,6 +82,7 @@ from slip_estimator.paramfile import (
 )
 from slip_estimator.ros.cdr_out import serialize
 from slip_estimator.ros.spin import CallbackDurations, bounded_teardown, spin, timed
+from slip_estimator.ros.qos import IMU_QUEUE_DEPTH, WHEEL_QUEUE_DEPTH, input_qos, output_qos
 from slip_estimator.ros.adapter import (
     OUTPUT_TYPES,
     TOPIC_DIAGNOSTICS,
@@ -99,8 +94,6 @@ from slip_estimator.ros.adapter import (
 )
 
 NODE_NAME = 'slip_estimator'
-IMU_QUEUE_DEPTH = 500
-WHEEL_QUEUE_DEPTH = 100
 INPUT_BATCH = 'input_batch_period_s'
 MAX_INPUT_BATCH_PERIOD_S = 0.1
 STALE_AFTER_S = 1.0
@@ -110,20 +103,6 @@ CALLBACK_WINDOW = 15000
 ALL_CALLBACKS_WINDOW = 18000
 """Durations of every callback kept for the ``all_callbacks_*_ms`` diagnostics (about 60 s at
 250 Hz IMU, 10 Hz wheels and their output steps)."""
-
-
-def input_qos(depth: int) -> QoSProfile:
-    """Sensor-data QoS (best effort, volatile) with a deeper KEEP_LAST queue."""
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
-                      reliability=ReliabilityPolicy.BEST_EFFORT,
-                      durability=DurabilityPolicy.VOLATILE)
-
-
-def output_qos(depth: int) -> QoSProfile:
-    """Reliable, volatile output QoS."""
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
-                      reliability=ReliabilityPolicy.RELIABLE,
-                      durability=DurabilityPolicy.VOLATILE)
 
 
 _DEFAULTS = Params()
