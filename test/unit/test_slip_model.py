@@ -553,3 +553,31 @@ def test_a_start_from_rest_resolves_the_ground_only_within_the_assumed_slip_sigm
     assert chain.settle(0.3, None, 0.8, 0.09, 0.08, True, False, False,
                         start_speed_var=0.3 ** 2) == 0.0
     assert chain.assumed and chain.ground == 0.05
+
+
+def test_a_body_side_alarm_on_a_coarse_ins_keeps_the_aided_speeds_continuity():
+    """A free INS whose speed scatters by more than COARSE_CONTINUITY_FRACTION of the rim
+    speed (a random walk of 0.3 m/s/sqrt(s): 0.47 m/s over 2.5 s at 1 m/s) runs 2 m/s away
+    from a body that kept its speed (the 30-Hz consumer robot's free speed moved 2-6 m/s more
+    than the body): the alarm anchors on the aided speed, the held model's 0.95 m/s, not on
+    the free speed's change (-1 m/s, the body reversed), and takes nothing back (the aid was
+    levelling that INS, not teaching it an old slip)."""
+    from slip_estimator.core.slip_model.chain import COARSE_CONTINUITY_FRACTION
+    t, start = drive(40.0)
+    w = 1.0 * start
+    v = 0.95 * w  # the ground's slip 0.05 throughout
+    rng = np.random.default_rng(3)
+    walk = np.cumsum(rng.normal(0.0, 0.3 * np.sqrt(DT_S), len(t)))
+    v_free = v + walk - 2.0 * smooth_step(t, 30.0, 0.3)
+    model = SlipModel(Params())
+    alarms = []
+    for k in range(len(t)):
+        d = model.step(int(k * DT_S * 1e9), float(w[k]), float(v[k]), float(v_free[k]),
+                       bool(w[k] >= 0.02), False)
+        if d is not None and d.anchor and d.held_slip is None and t[k] > 29.0:
+            alarms.append(d)
+    assert math.sqrt(model.spread_var[-1]) > COARSE_CONTINUITY_FRACTION * 1.0
+    assert alarms
+    for d in alarms:
+        assert d.take_back_since_ns is None
+        assert d.z_mps == pytest.approx(0.95, abs=0.05)

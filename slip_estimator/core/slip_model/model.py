@@ -32,7 +32,10 @@ Modes (:class:`Mode`):
   the pull for tilt and accelerometer bias: the alarm takes those corrections back
   (``AidDecision.take_back_since_ns``), or the free INS measures the change short (patch
   entries read 30-40 % low). Not after a start in motion: there the aid is still levelling
-  the INS (a 30-Hz consumer IMU lost 1-2.5 deg). The measured slip is then held as
+  the INS (a 30-Hz consumer IMU lost 1-2.5 deg). Nor on an INS whose free speed scatters
+  beyond ``COARSE_CONTINUITY_FRACTION`` of the rim speed: there the aided speed carries the
+  continuity, as on the wheel side (the free speed of the 30-Hz consumer robot ran 2-6 m/s
+  from the body over the anchor's span). The measured slip is then held as
   :mod:`.chain` decides (the ground's baseline, a false alarm, a
   run-ahead no slope explains);
 * ``TRACK``: the held slip turns the rim speed into a forward-speed aid ``g(s_hold) w`` that
@@ -56,7 +59,8 @@ from slip_estimator.core.params import Params
 from slip_estimator.core.slip_model.rim_memory import RimMemory
 from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
 from slip_estimator.core.slip import speed_ratio
-from slip_estimator.core.slip_model.chain import SlipChain, coarse_ins
+from slip_estimator.core.slip_model.chain import (COARSE_CONTINUITY_FRACTION, SlipChain,
+                                                  coarse_ins)
 from slip_estimator.core.slip_model.measurement import SlipMeasurement
 from slip_estimator.core.slip_model.step_test import SCALES_S, StepTest
 from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
@@ -333,8 +337,19 @@ class SlipModel:
             if before is not None:
                 # Once a stop measured the ground, the aid's tilt and bias corrections since
                 # the onset are the old slip's and are taken back; after a start in motion
-                # they are still levelling the INS (a 30-Hz consumer IMU lost 1-2.5 deg).
-                take_back = before.last_ns if self.baseline is not None else None
+                # they are still levelling the INS (a 30-Hz consumer IMU lost 1-2.5 deg), as
+                # on an INS too coarse for its free speed to carry the continuity.
+                coarse = coarse_ins(self.spread_var[-1], w, COARSE_CONTINUITY_FRACTION)
+                take_back = before.last_ns if self.baseline is not None and not coarse \
+                    else None
+                if coarse:
+                    # As on the wheel side: the aided speed carries the continuity (the free
+                    # speed of a 30-Hz consumer IMU moved 2-6 m/s more than the body over
+                    # 2.75 s and its anchor reversed the body).
+                    self._start_change(Anchor(before.z_mps, before.v_mps, True,
+                                              t_ns=before.t_ns), 'body')
+                    return AidDecision(before.z_mps + v - before.v_mps,
+                                       p.wheel_aid_std_mps ** 2, anchor=True)
                 self._start_change(
                     Anchor(before.z_mps, before.v_free_mps, True, t_ns=before.t_ns), 'body')
                 # Re-anchor now on continuity (the aid had been pulling the INS back onto the
