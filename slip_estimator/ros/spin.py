@@ -139,9 +139,19 @@ class CallbackDurations:
         n = min(self.count, len(self._s))
         if not n:
             return ['unknown'] * 3 + ['0']
-        ms = self._s[:n] * 1e3
-        p50, p99 = np.percentile(ms, (50.0, 99.0))
-        return [f'{p50:.3f}', f'{p99:.3f}', f'{ms.max():.3f}', str(n)]
+        s = self._s[:n]
+        p50, p99 = (_percentile_s(s, q) * 1e3 for q in (0.5, 0.99))
+        return [f'{p50:.3f}', f'{p99:.3f}', f'{s.max() * 1e3:.3f}', str(n)]
+
+
+def _percentile_s(values: np.ndarray, q: float) -> float:
+    """``np.percentile(values, 100 q)`` (linear interpolation) from the two order statistics
+    around it, by ``np.partition`` (half the cost of a full percentile on 15000 entries)."""
+    pos = q * (len(values) - 1)
+    lo = int(pos)
+    hi = min(lo + 1, len(values) - 1)
+    part = np.partition(values, (lo, hi))
+    return float(part[lo] + (part[hi] - part[lo]) * (pos - lo))
 
 
 def timed(callback: Callable[..., Any], durations: CallbackDurations) -> Callable[..., Any]:
