@@ -469,6 +469,33 @@ def test_a_measurement_on_another_slope_is_not_snapped_to_the_baseline():
     assert held(3.0) == 0.08 and held(5.0, 2.0) == 0.08
 
 
+def test_a_change_mirroring_a_rejected_run_ahead_is_held_and_doubted():
+    """Closed form at 0.5 m/s, a 2.5-s INS spread of 0.05 m/s, baseline 0.06 (pitch 0): a
+    run-ahead -0.22 at level pitch is rejected (back to 0.06, its change -0.14 m/s). The next
+    body-side change to 0.34 (+0.14 m/s) on a 6-degree rise (another slope: no return to the
+    baseline) mirrors it within 2 sqrt(2) x 0.05 = 0.14 m/s: held as read, doubted (the body
+    may have run ahead and returned). A change to 0.70 (+0.32 m/s) is 0.18 m/s off the
+    mirror: not doubted; a stop or the next change clears the doubt."""
+    from slip_estimator.core.slip_model.chain import SlipChain
+    def after(second):
+        chain = SlipChain(Params())
+        chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+        assert chain.settle(-0.22, 0.06, 0.5, 0.05 ** 2, 0.05, False, False, True,
+                            body_window_s=(10.0, 13.0)) == 0.06
+        held = chain.settle(second, 0.06, 0.5, 0.05 ** 2, 0.05, False, False, False,
+                            math.radians(6.0), body_window_s=(20.0, 23.0))
+        return held, chain
+    held, chain = after(0.34)
+    assert held == 0.34 and chain.doubted
+    chain.reset()
+    assert not chain.doubted
+    held, chain = after(0.34)
+    assert chain.settle(0.70, 0.34, 0.5, 0.05 ** 2, 0.05, False, False, False,
+                        body_window_s=(30.0, 33.0)) == 0.70 and not chain.doubted
+    held, chain = after(0.70)
+    assert held == 0.70 and not chain.doubted
+
+
 @pytest.mark.parametrize('rate_hz', [10, 50])
 def test_a_wheel_side_change_is_measured_from_before_the_rim_began_to_move(rate_hz):
     """Over a crest the commanded rate falls (0.65 -> 0.5 m/s in 2 s) while the slope's slip
