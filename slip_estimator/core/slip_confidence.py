@@ -71,9 +71,9 @@ class Confidence(NamedTuple):
     p_wrong_departed: float = 0.0
     """probability that a reading departed from the hold is wrong: one reading more"""
     doubted: bool = False
-    """the hold is a change the slip model could not tell from a return to the ground (the
-    mirror of a rejected run-ahead): it resolves medium or worse only by the published
-    P(medium+) (:func:`~slip_estimator.core.outputs._resolved`)"""
+    """the hold rests on a decision of the slip model's that the IMU cannot make (chained after
+    a rejected run-ahead): it resolves medium or worse only by the published P(medium+)
+    (:func:`~slip_estimator.core.outputs.slip_estimate`)"""
 
     def wrong_at(self, s: float) -> float:
         """Probability that the published reading ``s`` is wrong: :attr:`p_wrong_departed`
@@ -156,7 +156,7 @@ class ReadingRecord:
         """The :class:`Confidence` of a sample published with the hold ``held_slip``, the
         ``baseline`` and the step test's threshold ``change_mps`` (call after
         :meth:`observe`); ``doubt``: the probability that the hold is the ground's baseline
-        by a decision of the slip model's own (the mirror of a rejected run-ahead), on top of
+        by a decision of the slip model's own (chained after a rejected run-ahead), on top of
         its readings' (:attr:`Confidence.doubted`)."""
         def wrong(departed: bool) -> float:
             p = self.wrong_probability(held_slip, baseline, departed)

@@ -168,7 +168,7 @@ def test_a_reading_off_the_hold_across_0_2_rests_on_one_reading_more():
 
 
 def test_a_doubted_hold_resolves_medium_only_by_the_published_probability():
-    """A hold of 0.30 (body 0.7 m/s +- 0.01, rim 1.0) that mirrors a rejected run-ahead
+    """A hold of 0.30 (body 0.7 m/s +- 0.01, rim 1.0) chained after a rejected run-ahead
     (doubt 0.5, the ground's baseline 0.05): P(medium+) = 0.5 Phi(0.1 / sd) + 0.5
     Phi(-0.15 / sd), about 0.5, below RESOLVED_P: published low, unresolved, its ratio the
     reading's. Undoubted, the same hold is medium."""
