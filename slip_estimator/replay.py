@@ -39,14 +39,10 @@ from typing import Any
 from slip_estimator.bagio import BagError, BagWriter, bag_topics, read_raw
 from slip_estimator.core.params import ParameterError, Params
 from slip_estimator.paramfile import load_params
-from slip_estimator.ros.adapter import (
-    RESET_JUMP_BACK_S,
-    TOPIC_IMU,
-    TOPIC_SLIP_RATIO,
-    EstimatorFactory,
-    SlipEstimatorAdapter,
-)
 from slip_estimator.ros import cdr
+from slip_estimator.ros.adapter import EstimatorFactory, SlipEstimatorAdapter
+from slip_estimator.ros.data_time import RESET_JUMP_BACK_S
+from slip_estimator.ros.topics import TOPIC_IMU, TOPIC_SLIP_RATIO
 
 PROGRESS_EVERY_S = 2.0
 """Wall-time interval of the progress line on stderr."""
@@ -264,8 +260,8 @@ def replay_bag(input_bag: str | Path, params: Params, output_bag: str | Path, *,
     return ReplaySummary(
         messages_in=run.n_in, messages_out=sum(run.outputs.values()), inputs=dict(run.inputs),
         outputs=dict(run.outputs),
-        rejected={f'{t} {r}': c for (t, r), c in sorted(adapter.rejected.items())},
-        dropped_non_finite=dict(adapter.dropped_non_finite), resets=adapter.resets,
+        rejected={f'{t} {r}': c for (t, r), c in sorted(adapter.counters.rejected.items())},
+        dropped_non_finite=dict(adapter.counters.dropped_non_finite), resets=adapter.counters.resets,
         data_duration_s=run.data_duration_s(), wall_time_s=clock() - t0, read_s=run.read_s,
         estimation_s=run.estimation_s, write_s=run.write_s)
 

@@ -83,14 +83,14 @@ from slip_estimator.paramfile import (
 from slip_estimator.ros.cdr_out import serialize
 from slip_estimator.ros.spin import CallbackDurations, bounded_teardown, spin, timed
 from slip_estimator.ros.qos import IMU_QUEUE_DEPTH, WHEEL_QUEUE_DEPTH, input_qos, output_qos
-from slip_estimator.ros.adapter import (
+from slip_estimator.ros.adapter import SlipEstimatorAdapter
+from slip_estimator.ros.topics import (
     OUTPUT_TYPES,
     TOPIC_DIAGNOSTICS,
     TOPIC_IMU,
     TOPIC_SLIP,
     TOPIC_SLIP_RATIO,
     Output,
-    SlipEstimatorAdapter,
 )
 
 NODE_NAME = 'slip_estimator'
