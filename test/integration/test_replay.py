@@ -187,7 +187,7 @@ def _message_object_replay(bag: Path, params) -> dict[str, list]:
     """The replay's outputs as the message-object path gives them: every input deserialized
     by rclpy into a message, converted by ``convert.*_from_msg`` (``adapter.on_message``), in
     the replay's order."""
-    from slip_estimator.replay import ReorderWindow
+    from slip_estimator.replay_inputs import ReorderWindow
 
     adapter = ad.SlipEstimatorAdapter(params)
     arrivals = ((stamp_to_ns(m.msg.header.stamp), m.topic, m.msg)
