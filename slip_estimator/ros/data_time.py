@@ -79,15 +79,20 @@ class OutputSchedule:
 
     def odometry_sent(self, stamp_ns: int) -> None:
         """Odometry went out at ``stamp_ns``: the next is due one period later on a fixed grid
-        (no drift), re-anchored after a gap in the data."""
-        nxt = (self._next_odom_ns or stamp_ns) + self._odom_period_ns
-        self._next_odom_ns = nxt if nxt > stamp_ns else stamp_ns + self._odom_period_ns
+        (no drift), re-anchored after a gap in the data (:func:`_next_due`)."""
+        self._next_odom_ns = _next_due(self._next_odom_ns, stamp_ns, self._odom_period_ns)
 
     def diagnostics_due(self, stamp_ns: int) -> bool:
         """Whether ``/diagnostics`` is due at ``stamp_ns``; if so, the next is scheduled as
         odometry's is."""
         if self._next_diag_ns is not None and stamp_ns < self._next_diag_ns:
             return False
-        nxt = (self._next_diag_ns or stamp_ns) + self._diag_period_ns
-        self._next_diag_ns = nxt if nxt > stamp_ns else stamp_ns + self._diag_period_ns
+        self._next_diag_ns = _next_due(self._next_diag_ns, stamp_ns, self._diag_period_ns)
         return True
+
+
+def _next_due(due_ns: int | None, stamp_ns: int, period_ns: int) -> int:
+    """One period after ``due_ns`` (a fixed grid, no drift), or after ``stamp_ns`` when that
+    is not later than ``stamp_ns`` (a gap in the data) or there is no grid yet."""
+    nxt = (due_ns or stamp_ns) + period_ns
+    return nxt if nxt > stamp_ns else stamp_ns + period_ns
