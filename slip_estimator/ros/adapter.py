@@ -184,7 +184,7 @@ class SlipEstimatorAdapter:
             counters.clock_jumps_back += 1
             self.reset(f'IMU clock jumped back by {(last_ns - stamp_ns) * 1e-9:.1f}'
                        f' s (stamp {last_ns * 1e-9:.3f} -> {stamp_ns * 1e-9:.3f})')
-            step = self._stamps.step(stamp_ns)  # the new run's first stamp
+            self._stamps.step(stamp_ns)  # the new run's first stamp: NEXT
         elif step is StampStep.GAP:
             counters.imu_stamp_gaps += 1
 
