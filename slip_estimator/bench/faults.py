@@ -31,15 +31,15 @@ import numpy as np
 
 from slip_estimator.bagio import BagWriter, read_messages
 from slip_estimator.core.params import Params
-from slip_estimator.ros.adapter import (
+from slip_estimator.ros.adapter import SlipEstimatorAdapter
+from slip_estimator.ros.convert import header_stamp_ns, ns_to_stamp
+from slip_estimator.ros.topics import (
     TOPIC_DIAGNOSTICS,
     TOPIC_IMU,
     TOPIC_JOINT_STATES,
     TOPIC_SLIP,
     TOPIC_WHEEL_ODOMETRY,
-    SlipEstimatorAdapter,
 )
-from slip_estimator.ros.convert import header_stamp_ns, ns_to_stamp
 
 NS = 1_000_000_000
 TOPIC_TRUTH_SLIP = '/truth/slip'

@@ -252,7 +252,7 @@ def live_worker(args: argparse.Namespace) -> int:
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import Imu, JointState
 
-    from slip_estimator.ros.adapter import TOPIC_DIAGNOSTICS, TOPIC_IMU, TOPIC_ODOMETRY
+    from slip_estimator.ros.topics import TOPIC_DIAGNOSTICS, TOPIC_IMU, TOPIC_ODOMETRY
     from slip_estimator.ros.convert import header_stamp_ns
     from slip_estimator.ros.qos import input_qos, output_qos
 

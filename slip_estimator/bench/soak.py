@@ -35,13 +35,10 @@ from sensor_msgs.msg import Imu, JointState
 
 from slip_estimator.bench import faults as F
 from slip_estimator.bench.machine import proc_rss_mb
-from slip_estimator.ros.adapter import (
-    TOPIC_IMU,
-    TOPIC_JOINT_STATES,
-    SlipEstimatorAdapter,
-)
+from slip_estimator.ros.adapter import SlipEstimatorAdapter
 from slip_estimator.ros.convert import ns_to_stamp
 from slip_estimator.ros.finite import message_is_finite
+from slip_estimator.ros.topics import TOPIC_IMU, TOPIC_JOINT_STATES
 from slip_estimator.sim.bag import sim_params
 from slip_estimator.sim.drives import default_scenario
 from slip_estimator.sim.rover import simulate
@@ -272,10 +269,10 @@ def main(argv: list[str] | None = None) -> int:
         stream, chunk_faults = draw_faults(clean_stream, rng, t0_ns, duration, chunk)
         # Stamps after a forward jump stay shifted: the next chunk continues from the last one.
         last_ns = max(F.header_stamp_ns(m) for tp, m, _ in stream if tp == TOPIC_IMU)
-        resets_before = fault_ad.resets
+        resets_before = fault_ad.counters.resets
         out_clean = feed(clean_ad, clean_stream, stats)
         out_fault = feed(fault_ad, stream, stats, rss_samples, done_s / 60.0)
-        resets_seen = fault_ad.resets - resets_before
+        resets_seen = fault_ad.counters.resets - resets_before
         clean_ok = F.correctness(clean_stream, out_clean)
         fault_ok = F.correctness(stream, out_fault)
         score.add(chunk_faults, t0_ns, duration, resets_seen, out_fault, clean_ok, fault_ok)
@@ -300,8 +297,10 @@ def report(seed: int, done_s: float, wall: float, injected: list[Injected], scor
            clean_ad: SlipEstimatorAdapter, fault_ad: SlipEstimatorAdapter) -> int:
     """Print the soak figures; exit status 1 on any NaN or undetected fault."""
     found, missed, recoveries = score.found, score.missed, score.recoveries
-    dropped = sum(fault_ad.dropped_non_finite.values()) + sum(clean_ad.dropped_non_finite.values())
-    core_errors = sum(n for (_, r), n in fault_ad.rejected.items() if r == 'core_error')
+    faults = fault_ad.counters
+    dropped = (sum(faults.dropped_non_finite.values())
+               + sum(clean_ad.counters.dropped_non_finite.values()))
+    core_errors = sum(n for (_, r), n in faults.rejected.items() if r == 'core_error')
     print(f'\nsoak: {done_s / 60.0:.1f} min of simulated driving, seed {seed}, '
           f'{len(injected)} faults, wall {wall:.0f} s ({done_s / wall:.1f}x real time for two '
           f'adapters)')
@@ -326,8 +325,8 @@ def report(seed: int, done_s: float, wall: float, injected: list[Injected], scor
               'so a core-counted fault after a backward jump in the same chunk can read as '
               'missed): ' + ', '.join(f'({m.chunk}, {m.start_s:.0f}, {m.kind})' for m in missed))
     print(f'fault counters (faulty adapter, last report): '
-          f'node_resets {fault_ad.resets}, imu stamp gaps {fault_ad.imu_stamp_gaps}, rejected '
-          f'{dict(sorted((f"{t} {r}", n) for (t, r), n in fault_ad.rejected.items()))}')
+          f'node_resets {faults.resets}, imu stamp gaps {faults.imu_stamp_gaps}, rejected '
+          f'{dict(sorted((f"{t} {r}", n) for (t, r), n in faults.rejected.items()))}')
     return 1 if stats['nan_outputs'] or dropped or undetected else 0
 
 

@@ -3,18 +3,9 @@
 All logic lives in :class:`slip_estimator.ros.adapter.SlipEstimatorAdapter` (shared with the bag
 replay); this module only deals with rclpy.
 
-QoS
----
-Inputs use the sensor-data profile (BEST_EFFORT, VOLATILE, KEEP_LAST) with a deeper queue:
-depth 500 for ``/imu/data`` (2 s at 250 Hz) and 100 for the wheel topic. A best-effort
-subscription matches both best-effort publishers (the usual IMU driver setting) and reliable
-ones (bag players, ``ros2 topic pub``); a reliable subscription would silently not connect to a
-best-effort driver. The deep queue absorbs executor stalls (GIL, garbage collection, a burst
-from a bag player) so that no sample is overwritten before the callback runs; lost samples
-would show up in ``/diagnostics`` as the ``/imu/data stamp_gaps`` counter and as a difference
-between the publisher's count and ``/imu/data received``.
-Outputs are RELIABLE, VOLATILE, KEEP_LAST: depth 10 for odometry and diagnostics, 100 for the
-slip topics (one message per wheel sample, consumers must not miss class changes).
+QoS (sensor-data inputs with deep queues, reliable outputs): :mod:`slip_estimator.ros.qos`.
+Parameters (declared at start, changed at runtime, applied at a reset):
+:mod:`slip_estimator.ros.node_params`.
 
 Receiving
 ---------
@@ -29,22 +20,6 @@ executor does not see the input subscriptions (:attr:`SlipEstimatorNode.subscrip
 spin loop takes their messages itself (:meth:`SlipEstimatorNode.handle_ready_inputs`) and runs
 the same callbacks. How the node spins (the events executor, input batches, the output step,
 gc), how every callback is timed and how it stops: :mod:`slip_estimator.ros.spin`.
-
-Parameters
-----------
-Declared from :class:`slip_estimator.core.params.Params` (names, defaults, descriptions with
-unit and range) with dynamic typing, so that ``wheel_radius:=1`` (an integer) is accepted and
-every value is validated once, by Params. An invalid start-up value logs the parameter, value
-and allowed range and ``main`` returns 2. Runtime changes are validated the same way (invalid
-ones are rejected with that message); valid ones take effect at the next estimator reset: a
-sensor clock jump back, or a call of the ``~/reset`` service (``std_srvs/srv/Trigger``, e.g.
-``ros2 service call /slip_estimator/reset std_srvs/srv/Trigger``), which restarts the estimator
-at once. ``wheel_input`` cannot change at runtime: it decides the subscriptions.
-
-Parameter files: a file with no section for the node's name is reported at ERROR level with
-the sections it has (its values do not apply); a name that is not a parameter of the node
-(misspelled) makes the node refuse to start (exit 2) unless ``allow_unknown_parameters`` is
-true.
 """
 from __future__ import annotations
 
@@ -55,8 +30,7 @@ from operator import itemgetter
 from typing import Any
 
 import rclpy
-from diagnostic_msgs.msg import KeyValue
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
@@ -64,49 +38,25 @@ from rclpy.parameter import Parameter
 from rclpy.subscription import Subscription
 from std_srvs.srv import Trigger
 
-from slip_estimator.core.params import (
-    RENAMED_PARAMETERS,
-    ParameterError,
-    Params,
-    describe,
-    renamed_in,
-)
-from slip_estimator.paramfile import (
-    NODE_ONLY_PARAMETERS,
-    PARAMETER_NAMES,
-    coerce_param_value,
-    node_sections,
-    params_files,
-    read_yaml,
-    unknown_parameters,
-)
+from slip_estimator.core.params import ParameterError
+from slip_estimator.paramfile import params_files, read_yaml
+from slip_estimator.ros.adapter import SlipEstimatorAdapter
 from slip_estimator.ros.cdr_out import serialize
-from slip_estimator.ros.spin import CallbackDurations, bounded_teardown, spin, timed
+from slip_estimator.ros.node_params import change_params, declare_params, reset_applying_changes
 from slip_estimator.ros.qos import IMU_QUEUE_DEPTH, WHEEL_QUEUE_DEPTH, input_qos, output_qos
-from slip_estimator.ros.adapter import (
+from slip_estimator.ros.spin import CallbackStats, bounded_teardown, spin, timed
+from slip_estimator.ros.topics import (
     OUTPUT_TYPES,
     TOPIC_DIAGNOSTICS,
     TOPIC_IMU,
     TOPIC_SLIP,
     TOPIC_SLIP_RATIO,
     Output,
-    SlipEstimatorAdapter,
 )
 
 NODE_NAME = 'slip_estimator'
-INPUT_BATCH = 'input_batch_period_s'
-MAX_INPUT_BATCH_PERIOD_S = 0.1
 STALE_AFTER_S = 1.0
 """The watchdog reports STALE 'no IMU data' when no IMU message arrived for this long (wall)."""
-CALLBACK_WINDOW = 15000
-"""IMU callback durations kept for the ``callback_*_ms`` diagnostics (60 s at 250 Hz)."""
-ALL_CALLBACKS_WINDOW = 18000
-"""Durations of every callback kept for the ``all_callbacks_*_ms`` diagnostics (about 60 s at
-250 Hz IMU, 10 Hz wheels and their output steps)."""
-
-
-_DEFAULTS = Params()
-ALLOW_UNKNOWN = 'allow_unknown_parameters'
 
 
 class SlipEstimatorNode(Node):
@@ -122,20 +72,12 @@ class SlipEstimatorNode(Node):
     def __init__(self, node_name: str = NODE_NAME, *, param_files: list[str] | None = None,
                  **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
-        self._check_parameter_sources(param_files or [])
-        defaults = self._defaults_with_old_names()
-        for name in PARAMETER_NAMES:
-            self.declare_parameter(
-                name, defaults[name],
-                ParameterDescriptor(description=describe(name), dynamic_typing=True))
-        params = Params.from_dict({name: coerce_param_value(
-            name, self.get_parameter(name).value) for name in PARAMETER_NAMES})
+        params, self.input_batch_period_s = declare_params(self, param_files or [])
         self.adapter = SlipEstimatorAdapter(params)
         self.get_logger().info('effective parameters: ' + ', '.join(
             f'{k}={v!r}' for k, v in params.to_dict().items()))
 
-        self._imu_durations = CallbackDurations(CALLBACK_WINDOW)
-        self._all_durations = CallbackDurations(ALL_CALLBACKS_WINDOW)
+        self._stats = CallbackStats()
         self._pubs = {topic: self.create_publisher(
             cls, topic, output_qos(100 if topic in (TOPIC_SLIP, TOPIC_SLIP_RATIO) else 10))
             for topic, cls in OUTPUT_TYPES.items()}
@@ -160,77 +102,21 @@ class SlipEstimatorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._reset_service = self.create_service(Trigger, '~/reset', self._on_reset)
         for entity in (*self.timers, *self.services):  # rclpy's parameter services included
-            entity.callback = timed(entity.callback, self._all_durations)
-
-    def _check_parameter_sources(self, param_files: list[str]) -> None:
-        """Log an ERROR for a params file with no section for this node (a misspelled node name
-        would run on every default); raise :class:`ParameterError` for a parameter that is not
-        one of the node's (misspelled) unless ``allow_unknown_parameters`` is true."""
-        fqn = self.get_fully_qualified_name()
-        for path in param_files:
-            doc = read_yaml(path)
-            if not node_sections(doc, fqn):
-                sections = ', '.join(map(str, doc)) if isinstance(doc, dict) else 'none'
-                self.get_logger().error(
-                    f'parameter file {path} has NO section for this node ({fqn}); sections in '
-                    f'the file: {sections or "none"}. None of its values apply: expected '
-                    f'"{self.get_name()}:" or "/**:" at the top level.')
-        allow = self.declare_parameter(
-            ALLOW_UNKNOWN, NODE_ONLY_PARAMETERS[ALLOW_UNKNOWN], ParameterDescriptor(
-                description='start even when a parameter file or -p sets a name that is not '
-                            'a parameter of this node (otherwise the node refuses to start)',
-                read_only=True)).value
-        unknown = unknown_parameters(self._parameter_overrides)
-        if unknown and not allow:
-            raise ParameterError(
-                f'unknown parameter(s) {", ".join(unknown)} (misspelled? every parameter: '
-                f'slip-estimator default-config); set {ALLOW_UNKNOWN}:=true to start anyway')
-        if unknown:
-            self.get_logger().error(f'ignoring unknown parameter(s) {", ".join(unknown)} '
-                                    f'({ALLOW_UNKNOWN} is true)')
-        period = self.declare_parameter(
-            INPUT_BATCH, NODE_ONLY_PARAMETERS[INPUT_BATCH], ParameterDescriptor(
-                description='s, 0 to 0.1: the node sleeps this long after handling what was '
-                            'ready, then handles what arrived meanwhile in one go (less CPU, '
-                            'up to this much more output latency; 0: wake for every message)',
-                read_only=True, dynamic_typing=True)).value
-        if (isinstance(period, bool) or not isinstance(period, (int, float))
-                or not 0.0 <= period <= MAX_INPUT_BATCH_PERIOD_S):
-            raise ParameterError(f'{INPUT_BATCH} = {period!r}: must be a number of seconds '
-                                 f'from 0 to {MAX_INPUT_BATCH_PERIOD_S:g}')
-        self.input_batch_period_s = float(period)
-
-    def _defaults_with_old_names(self) -> dict[str, Any]:
-        """The schema's defaults, a value set under a parameter's old name
-        (:data:`RENAMED_PARAMETERS`) in place of its new name's default (the new name, when set
-        too, overrides it as any default); a one-line warning per old name."""
-        overrides = self._parameter_overrides
-        for warning in renamed_in(overrides):
-            self.get_logger().warning(warning)
-        defaults = _DEFAULTS.to_dict()
-        for old, new in RENAMED_PARAMETERS.items():
-            if old in overrides:
-                defaults[new] = overrides[old].value
-        return defaults
+            entity.callback = timed(entity.callback, self._stats.all)
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response
                   ) -> Trigger.Response:
         """``~/reset`` (std_srvs/Trigger): restart the estimator now, applying any accepted
         parameter change; the reset is named in the next ``/diagnostics`` report."""
-        pending = self.adapter.pending_params
-        changed = ({k: v for k, v in pending.to_dict().items()
-                    if getattr(self.adapter.params, k) != v} if pending is not None else {})
-        self.adapter.reset('reset requested on ~/reset')
+        response.message = reset_applying_changes(self.adapter)
         response.success = True
-        response.message = ('estimator reset' + (f'; parameter change applied: {changed}'
-                                                 if changed else ''))
         self.get_logger().warning(response.message)
         return response
 
     def _callback(self, topic: str):  # noqa: ANN202 -- rclpy callback
         handle = self.adapter.on_raw
         is_imu = topic == TOPIC_IMU
-        durations = self._all_durations
+        durations, imu_durations = self._stats.all, self._stats.imu
 
         def callback(raw: bytes) -> None:
             t0 = time.perf_counter()
@@ -248,7 +134,7 @@ class SlipEstimatorNode(Node):
             seconds = time.perf_counter() - t0
             durations.add(seconds)
             if is_imu:
-                self._imu_durations.add(seconds)
+                imu_durations.add(seconds)
         return callback
 
     @property
@@ -289,25 +175,15 @@ class SlipEstimatorNode(Node):
         except Exception as exc:  # noqa: BLE001 -- as an input callback: never die on it
             self.adapter.count_exception('output step')
             self.get_logger().error(f'output step failed: {exc!r}', throttle_duration_sec=5.0)
-        self._all_durations.add(time.perf_counter() - t0)
+        self._stats.all.add(time.perf_counter() - t0)
 
     def _publish(self, outputs: list[Output]) -> None:
         if not self.context.ok():  # stopping (a signal shut the context down): nowhere to send
             return
         for topic, msg in outputs:
             if topic == TOPIC_DIAGNOSTICS:
-                self._add_callback_stats(msg)
+                self._stats.add_to(msg)
             self._pubs[topic].publish(serialize(msg))  # bytes: rclpy's publish_raw
-
-    def _add_callback_stats(self, msg: Any) -> None:
-        """Append the callback duration percentiles to every status of a DiagnosticArray."""
-        keys = ('p50_ms', 'p99_ms', 'max_ms', 'window')
-        values = [KeyValue(key=f'callback_{k}', value=v)
-                  for k, v in zip(keys, self._imu_durations.summary_ms())]
-        values += [KeyValue(key=f'all_callbacks_{k}', value=v)
-                   for k, v in zip(keys, self._all_durations.summary_ms())]
-        for status in msg.status:
-            status.values = list(status.values) + values
 
     def _check_imu_stale(self) -> None:
         if time.monotonic() - self._last_imu_wall > STALE_AFTER_S:
@@ -315,25 +191,8 @@ class SlipEstimatorNode(Node):
             self._emit(self.adapter.stale_diagnostics(stamp_ns, 'no IMU data'))
 
     def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        ours = {p.name: coerce_param_value(p.name, p.value) for p in parameters
-                if p.name in PARAMETER_NAMES}
-        if not ours:
-            return SetParametersResult(successful=True)
-        current = self.adapter.pending_params or self.adapter.params
-        if 'wheel_input' in ours and ours['wheel_input'] != current.wheel_input:
-            return SetParametersResult(
-                successful=False, reason='wheel_input cannot change at runtime; restart the node')
-        try:
-            new = current.replace(**ours)
-        except ParameterError as exc:
-            self.get_logger().error(f'rejected parameter change: {exc}')
-            return SetParametersResult(successful=False, reason=str(exc))
-        self.adapter.request_params(new)
-        self.get_logger().info(
-            f'accepted parameter change {ours}; effective at the next estimator reset (call '
-            f'the {self.get_fully_qualified_name()}/reset service, std_srvs/srv/Trigger, to '
-            'apply it now)')
-        return SetParametersResult(successful=True)
+        return change_params(self.adapter, parameters, self.get_logger(),
+                             self.get_fully_qualified_name())
 
 
 NODE_HELP = """usage: slip-estimator-node [--ros-args --params-file FILE.yaml -r FROM:=TO ...]

@@ -46,7 +46,7 @@ Every callback the node runs is timed (``time.perf_counter``, wall) into ring bu
 (:class:`CallbackDurations`): the ``/imu/data`` callbacks (convert, core step, build the
 outputs) in one of the last ``CALLBACK_WINDOW``, and every callback -- the input callbacks,
 the output step, the watchdog timer, the ``~/reset`` service and rclpy's parameter services --
-in one of the last ``ALL_CALLBACKS_WINDOW`` (:mod:`slip_estimator.ros.node`). Each
+in one of the last ``ALL_CALLBACKS_WINDOW`` (:class:`CallbackStats`). Each
 ``/diagnostics`` status the node publishes carries ``callback_p50_ms``, ``callback_p99_ms``,
 ``callback_max_ms`` and ``callback_window`` (IMU callbacks) and ``all_callbacks_p50_ms``,
 ``all_callbacks_p99_ms``, ``all_callbacks_max_ms`` and ``all_callbacks_window`` (every
@@ -75,6 +75,7 @@ from typing import Any
 
 import numpy as np
 import rclpy
+from diagnostic_msgs.msg import KeyValue
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
@@ -152,6 +153,34 @@ def _percentile_s(values: np.ndarray, q: float) -> float:
     hi = min(lo + 1, len(values) - 1)
     part = np.partition(values, (lo, hi))
     return float(part[lo] + (part[hi] - part[lo]) * (pos - lo))
+
+
+CALLBACK_WINDOW = 15000
+"""IMU callback durations kept for the ``callback_*_ms`` diagnostics (60 s at 250 Hz)."""
+ALL_CALLBACKS_WINDOW = 18000
+"""Durations of every callback kept for the ``all_callbacks_*_ms`` diagnostics (about 60 s at
+250 Hz IMU, 10 Hz wheels and their output steps)."""
+
+
+class CallbackStats:
+    """The node's callback durations: its ``/imu/data`` callbacks' and every callback's, and
+    the diagnostic values they give (see the module's Callback durations section)."""
+
+    __slots__ = ('imu', 'all')
+
+    def __init__(self) -> None:
+        self.imu = CallbackDurations(CALLBACK_WINDOW)
+        self.all = CallbackDurations(ALL_CALLBACKS_WINDOW)
+
+    def add_to(self, msg: Any) -> None:
+        """Append the duration percentiles to every status of a DiagnosticArray."""
+        keys = ('p50_ms', 'p99_ms', 'max_ms', 'window')
+        values = [KeyValue(key=f'callback_{k}', value=v)
+                  for k, v in zip(keys, self.imu.summary_ms())]
+        values += [KeyValue(key=f'all_callbacks_{k}', value=v)
+                   for k, v in zip(keys, self.all.summary_ms())]
+        for status in msg.status:
+            status.values = list(status.values) + values
 
 
 def timed(callback: Callable[..., Any], durations: CallbackDurations) -> Callable[..., Any]:

@@ -550,12 +550,13 @@ def test_slip_messages_are_finite_by_construction(field, bad):
 def test_adapter_checks_slip_messages_when_the_frame_reads_as_nan():
     """The one way a slip message could carry a non-finite text: the frame name."""
     from slip_estimator.core.params import Params
-    from slip_estimator.ros.adapter import TOPIC_SLIP, SlipEstimatorAdapter
+    from slip_estimator.ros.adapter import SlipEstimatorAdapter
+    from slip_estimator.ros.topics import TOPIC_SLIP
 
     for frame, dropped in (('base_link', 0), ('nan', 1)):
         adapter = SlipEstimatorAdapter(Params(base_frame=frame))
         out = adapter.slip_messages([SlipEstimate(1, 0.1, 0.01, 1, 0.5, 0.01, 0.55)])
-        assert adapter.dropped_non_finite[TOPIC_SLIP] == dropped
+        assert adapter.counters.dropped_non_finite[TOPIC_SLIP] == dropped
         assert len(out) == 2 - 2 * dropped
 
 

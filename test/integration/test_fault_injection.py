@@ -37,7 +37,7 @@ from helpers import mat_or_skip
 
 from slip_estimator.bagio import read_messages
 from slip_estimator.bench import faults as F
-from slip_estimator.ros.adapter import (
+from slip_estimator.ros.topics import (
     TOPIC_IMU,
     TOPIC_JOINT_STATES,
     TOPIC_ODOMETRY,
@@ -287,8 +287,8 @@ def test_bag_loop_resets_and_repeats_the_clean_run(sim):
     second, adapter = F.run_adapter(stream[n_first:], sim.params, adapter)
     outputs = first + second
     check_finite(outputs)
-    assert adapter.resets == 1
-    assert not adapter.dropped_non_finite
+    assert adapter.counters.resets == 1
+    assert not adapter.counters.dropped_non_finite
     # After the reset the outputs are the clean run's, field for field.
     for topic in (TOPIC_SLIP, TOPIC_ODOMETRY):
         again = [m for t, m in second if t == topic]
@@ -314,7 +314,7 @@ def test_arrival_order_jitter_live_path(sim, clean_correct):
                        np.random.default_rng(1), 0.1, 5, sim.ns(T), sim.ns(T + 5.0))
     outputs, adapter = F.run_adapter(stream, sim.params)
     check_finite(outputs)
-    assert not adapter.dropped_non_finite
+    assert not adapter.counters.dropped_non_finite
     values = F.diagnostic_values(outputs)
     assert F.counter(values, '/imu/data rejected non_monotonic') > 0
     assert F.counter(values, 'wheel_rejected') > 0

@@ -20,6 +20,7 @@ from slip_estimator.replay import replay_bag, replay_main
 from slip_estimator.ros import adapter as ad
 from slip_estimator.ros.convert import ns_to_stamp, stamp_to_ns
 from slip_estimator.ros.finite import message_is_finite
+from slip_estimator.ros.topics import OUTPUT_TYPES, TOPIC_ODOMETRY, TOPIC_SLIP_RATIO
 
 def output_stream(bag: Path) -> list[tuple[str, int, bytes]]:
     """(topic, log time, canonical CDR bytes) of every message of a bag, in bag order.
@@ -174,11 +175,11 @@ def test_adapter_decimation_and_reset_on_jump_back():
     # A duplicate IMU stamp is rejected; a jump back by > 1 s restarts with pending params.
     imu = [m for t, m, _ in messages if t == '/imu/data']
     assert adapter.on_imu(imu[-1]) == []
-    assert adapter.rejected['/imu/data', 'non_monotonic'] == 1
+    assert adapter.counters.rejected['/imu/data', 'non_monotonic'] == 1
     adapter.request_params(params.replace(odometry_rate_hz=0.0))
     assert adapter.pending_params is not None
     adapter.on_imu(imu[0])
-    assert adapter.resets == 1 and adapter.params.odometry_rate_hz == 0.0
+    assert adapter.counters.resets == 1 and adapter.params.odometry_rate_hz == 0.0
     assert adapter.pending_params is None
 
 
@@ -186,12 +187,12 @@ def _message_object_replay(bag: Path, params) -> dict[str, list]:
     """The replay's outputs as the message-object path gives them: every input deserialized
     by rclpy into a message, converted by ``convert.*_from_msg`` (``adapter.on_message``), in
     the replay's order."""
-    from slip_estimator.replay import ReorderWindow
+    from slip_estimator.replay_inputs import ReorderWindow
 
     adapter = ad.SlipEstimatorAdapter(params)
     arrivals = ((stamp_to_ns(m.msg.header.stamp), m.topic, m.msg)
                 for m in read_messages(bag, set(adapter.input_types)))
-    out: dict[str, list] = {t: [] for t in ad.OUTPUT_TYPES}
+    out: dict[str, list] = {t: [] for t in OUTPUT_TYPES}
     for stamp_ns, topic, msg in ReorderWindow().order(arrivals):
         for t, o in adapter.on_message(topic, msg):
             out[t].append((stamp_ns, o))
@@ -213,19 +214,19 @@ def test_replay_from_bytes_equals_message_objects(tmp_path, wheel_input):
     params = load_params(tmp_path / 'params.yaml').replace(wheel_input=wheel_input)
     replay_bag(tmp_path / 'sim', params, tmp_path / 'out')
     expected = _message_object_replay(tmp_path / 'sim', params)
-    got: dict[str, list] = {t: [] for t in ad.OUTPUT_TYPES}
+    got: dict[str, list] = {t: [] for t in OUTPUT_TYPES}
     for m in read_messages(tmp_path / 'out'):
         got[m.topic].append((m.log_time_ns, m.msg))
-    assert len(got[ad.TOPIC_SLIP_RATIO]) > 100 and len(got[ad.TOPIC_ODOMETRY]) > 100
-    for topic in ad.OUTPUT_TYPES:
+    assert len(got[TOPIC_SLIP_RATIO]) > 100 and len(got[TOPIC_ODOMETRY]) > 100
+    for topic in OUTPUT_TYPES:
         assert compare_messages(expected[topic], got[topic], topic) == []
     # The comparison sees a one-bit change of one field.
-    t, odo = got[ad.TOPIC_ODOMETRY][50]
+    t, odo = got[TOPIC_ODOMETRY][50]
     odo.pose.pose.position.x = np.nextafter(odo.pose.pose.position.x, math.inf)
-    assert compare_messages(expected[ad.TOPIC_ODOMETRY], got[ad.TOPIC_ODOMETRY],
-                            ad.TOPIC_ODOMETRY) == [
-        f'{ad.TOPIC_ODOMETRY}[50].pose.pose.position.x: '
-        f'{expected[ad.TOPIC_ODOMETRY][50][1].pose.pose.position.x!r} vs '
+    assert compare_messages(expected[TOPIC_ODOMETRY], got[TOPIC_ODOMETRY],
+                            TOPIC_ODOMETRY) == [
+        f'{TOPIC_ODOMETRY}[50].pose.pose.position.x: '
+        f'{expected[TOPIC_ODOMETRY][50][1].pose.pose.position.x!r} vs '
         f'{odo.pose.pose.position.x!r}']
 
 

@@ -17,7 +17,8 @@ from ros1bag import write_ros1_bag
 
 from slip_estimator.bagio import read_messages
 from slip_estimator.paramfile import save_params
-from slip_estimator.replay import ReorderWindow, replay_bag, replay_main
+from slip_estimator.replay import replay_bag, replay_main
+from slip_estimator.replay_inputs import ReorderWindow
 from slip_estimator.ros.convert import header_stamp_ns, ns_to_stamp
 from slip_estimator.ros.finite import message_is_finite
 

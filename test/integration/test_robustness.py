@@ -40,15 +40,15 @@ from slip_estimator.core.estimator import SlipEstimator
 from slip_estimator.core.params import Params
 from slip_estimator.core.types import ImuSample, SlipEstimate, WheelSample
 from slip_estimator.replay import replay_bag
-from slip_estimator.ros.adapter import (
+from slip_estimator.ros.adapter import SlipEstimatorAdapter
+from slip_estimator.ros.convert import ns_to_stamp, stamp_to_ns
+from slip_estimator.ros.finite import message_is_finite
+from slip_estimator.ros.topics import (
     TOPIC_DIAGNOSTICS,
     TOPIC_IMU,
     TOPIC_JOINT_STATES,
     TOPIC_SLIP,
-    SlipEstimatorAdapter,
 )
-from slip_estimator.ros.convert import ns_to_stamp, stamp_to_ns
-from slip_estimator.ros.finite import message_is_finite
 
 NS = 1_000_000_000
 T0_NS = 1_700_000_000 * NS
@@ -394,9 +394,9 @@ def check_adapter_stream(adapter: SlipEstimatorAdapter,
                          messages: list[tuple[str, object]]) -> None:
     order = StampOrder()
     for topic, msg in messages:
-        resets_before = adapter.resets
+        resets_before = adapter.counters.resets
         out = adapter.on_message(topic, msg)
-        if adapter.resets != resets_before:
+        if adapter.counters.resets != resets_before:
             order.reset()
         for out_topic, out_msg in out:
             assert message_is_finite(out_msg), out_topic
@@ -407,10 +407,10 @@ def check_adapter_stream(adapter: SlipEstimatorAdapter,
                 if kv['slip_class'] != 'unknown':
                     assert 'unknown' not in (kv['slip_ratio'], kv['slip_ratio_std'],
                                              kv['body_speed']), kv
-    assert not adapter.dropped_non_finite, (
+    assert not adapter.counters.dropped_non_finite, (
         f'the core produced non-finite outputs (dropped by the guard): '
-        f'{dict(adapter.dropped_non_finite)}')
-    core_errors = {k: n for k, n in adapter.rejected.items() if k[1] == 'core_error'}
+        f'{dict(adapter.counters.dropped_non_finite)}')
+    core_errors = {k: n for k, n in adapter.counters.rejected.items() if k[1] == 'core_error'}
     assert not core_errors, f'the core raised: {core_errors}'
 
 

@@ -6,8 +6,8 @@ from pathlib import Path
 import pytest
 
 from slip_estimator.core.params import RENAMED_PARAMETERS, Params
-from slip_estimator.ros.adapter import (OUTPUT_TYPES, TOPIC_IMU, TOPIC_JOINT_STATES,
-                                        TOPIC_WHEEL_ODOMETRY)
+from slip_estimator.ros.topics import (OUTPUT_TYPES, TOPIC_IMU, TOPIC_JOINT_STATES,
+                                       TOPIC_WHEEL_ODOMETRY)
 
 REPO = Path(__file__).resolve().parents[2]
 README = REPO / 'README.md'

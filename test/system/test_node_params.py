@@ -224,7 +224,7 @@ def test_spin_takes_the_inputs_in_arrival_order(ros_context):
         assert handled == []
         node.handle_ready_inputs()
         assert handled == sent and node.input_callbacks == len(sent)
-        assert node.adapter.received['/joint_states'] == sent.count('/joint_states')
+        assert node.adapter.counters.received['/joint_states'] == sent.count('/joint_states')
         assert sent.count('/joint_states') > 1
     finally:
         executor.shutdown()

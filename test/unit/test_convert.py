@@ -279,8 +279,8 @@ def test_node_adapter_accepts_positions_only_joint_states():
     for k in range(5):
         adapter.on_joint_states(_positions_msg(1 + k * 100_000_000, [0.1 * k] * 4))
     topic = '/joint_states'
-    assert adapter.received[topic] == 5
-    assert dict(adapter.rejected) == {(topic, convert.REASON_FIRST_POSITION): 1}
+    assert adapter.counters.received[topic] == 5
+    assert dict(adapter.counters.rejected) == {(topic, convert.REASON_FIRST_POSITION): 1}
 
 
 def test_imu_orientation_used_only_when_provided():
