@@ -231,6 +231,10 @@ class SlipEstimator:
     def _evaluate_wheel(self, wheel: WheelSample) -> SlipEstimate | None:
         """1. the body motion ``wheel_latency_s`` before its stamp, 2. the track width and yaw-rate
         aid, 3. the slip (unknown while recovering: the rim re-anchors), 4. the wheel aid."""
+        restore = self.history.take_back_refuted(wheel.rim_speed_mps,
+                                                 self.filter.state.C_b_n[:, 0])
+        if restore is not None:  # the INS ran away from a take-back: the aid had it right
+            self.history.apply(self.filter.correct(restore), aid=False)
         at = self.history.at(wheel.stamp_ns - self._wheel_latency_ns)
         if at is None:
             self.counters['wheel_late'] += 1
@@ -268,10 +272,12 @@ class SlipEstimator:
             return
         if d.held_slip is not None:
             self.monitor.add_held_slip(d.held_slip)
+        taken_back = None
         if d.take_back_since_ns is not None:
             # A change began there: what the aid taught since was the old slip's.
             undo = -self.history.aid_taught_since(d.take_back_since_ns)
-            self.history.apply(self.filter.correct(undo), aid=True)
+            taken_back = self.filter.correct(undo)
+            self.history.apply(taken_back, aid=True)
         if not d.update:
             return
         if not d.anchor:
@@ -282,6 +288,8 @@ class SlipEstimator:
                                         self.forward.jacobian(self.filter.state),
                                         self.forward.covariance(d.var_mps2))
         self.history.apply(correction, aid=not d.repair)
+        if taken_back is not None:  # checked against the INS TAKE_BACK_CHECK_S on
+            self.history.taken_back(taken_back, correction)
 
     def _aid_update(self, z_mps: float, v_hist_mps: float, var_mps2: float,
                     excluded: bool = True) -> None:

@@ -789,3 +789,36 @@ def test_the_gyro_bias_prior_grows_with_the_measured_grade():
     assert declared.initial_gyro_bias_std == 0.001
     quiet = with_message_noise(default, 1e-8, 1e-10, dt_s)
     assert quiet.initial_gyro_bias_std == default.initial_gyro_bias_std
+
+
+def _taken_back_then(v_after_mps, rim_after_mps, removed_mps2=-0.3):
+    """A take-back that removed ``removed_mps2`` (pitch and bias parts) at 1.0 m/s north, then
+    the INS's forward speed 1 s later; returns the restoring error state or None."""
+    h = ForwardSpeedHistory((0.0, 0.0, 0.0))
+    h.record(0, level_state(v_eb_n=(1.0, 0.0, 0.0)), [0.0, 0.0, 0.0], 0.01)
+    dx = np.zeros(N_ERR)
+    dx[ATT], dx[BA] = (0.0, 0.02, 0.0), (0.01, 0.0, 0.0)
+    h.taken_back(Correction(0.0, removed_mps2, dx), Correction(-0.1, 0.0, np.ones(N_ERR)))
+    assert h.take_back_refuted(0.8, np.array([1.0, 0.0, 0.0])) is None  # rim 0.8 noted
+    h.record(500_000_000, level_state(v_eb_n=(1.0, 0.0, 0.0)), [0.0, 0.0, 0.0], 0.01)
+    assert h.take_back_refuted(0.8, np.array([1.0, 0.0, 0.0])) is None  # not yet 1 s on
+    h.record(1_000_000_000, level_state(v_eb_n=(v_after_mps, 0.0, 0.0)), [0.0, 0.0, 0.0], 0.01)
+    restore = h.take_back_refuted(rim_after_mps, np.array([1.0, 0.0, 0.0]))
+    assert h.take_back_refuted(rim_after_mps, np.array([1.0, 0.0, 0.0])) is None  # once
+    return restore
+
+
+def test_a_take_back_the_ins_runs_away_from_is_restored():
+    # removed -0.3 m/s^2 and the INS lost 0.3 m/s in the next second at a steady rim: restore
+    # the tilt and bias taken back (the anchor's parts too) and the 0.3 m/s lost
+    restore = _taken_back_then(0.7, 0.8)
+    assert restore[ATT] == pytest.approx([-1.0, -1.02, -1.0])
+    assert restore[BA] == pytest.approx([-1.01, -1.0, -1.0])
+    assert restore[VEL] == pytest.approx([-0.3, 0.0, 0.0])  # correct(): v - dx[VEL] = 1.0
+    assert not restore[POS].any() and not restore[BG].any()
+    # the INS stayed level (a true change), ran away by too much or the other way, or the
+    # rim moved (the body may have followed it): kept
+    for v_after, rim_after in ((1.0, 0.8), (0.5, 0.8), (1.3, 0.8), (0.7, 0.85)):
+        assert _taken_back_then(v_after, rim_after) is None
+    # a take-back too small to tell from the aid's routine levelling is not checked
+    assert _taken_back_then(0.95, 0.8, removed_mps2=-0.05) is None
