@@ -15,8 +15,7 @@ the next until a stop or a return to the ground measured after the last start:
 * **false alarm.** A measurement within the change threshold of the previous hold is that
   hold (the INS confirms it);
 * **run-ahead.** One that no slope explains (:mod:`.run_ahead`) is the INS:
-  back to the baseline; unless beyond ``run_ahead.MAX_SLIP`` (a body does not roll at twice
-  the rim speed) the holds from there are ``doubted`` (the body may have run ahead:
+  back to the baseline; the holds from there are ``doubted`` (the body may have run ahead:
   :data:`REJECTED_DOUBT`) until a stop or a return to the baseline (which the rejection is
   itself where it ends a chain off the baseline on the baseline's slope);
 * **ratchet.** Body-side changes in one direction, each alarm firing as soon as the step
@@ -36,7 +35,6 @@ from __future__ import annotations
 import math
 
 from slip_estimator.core.params import Params
-from slip_estimator.core.slip_model import run_ahead
 
 _COARSE_INS_FRACTION = 0.15
 """An INS whose speed over a measurement span scatters by more than this fraction of the rim
@@ -147,10 +145,8 @@ class SlipChain:
         if implausible_run_ahead:
             # Back to the ground's baseline (none yet after a start in motion: the wheels');
             # what is held from there rests on that decision (REJECTED_DOUBT).
-            # Not one beyond MAX_SLIP: no ground lets the body roll at twice the rim speed,
-            # so that rejection is certain (a 50-g spike's 2 m/s held the class low 10 s).
-            self.doubted = measured >= -run_ahead.MAX_SLIP
             measured = baseline if baseline is not None else 0.0
+            self.doubted = True
             self.assumed = self.assumed or baseline is None
         if from_rest:
             # An INS the filter knows too coarse to place the ground's slip within the low
