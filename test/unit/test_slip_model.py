@@ -469,39 +469,6 @@ def test_a_measurement_on_another_slope_is_not_snapped_to_the_baseline():
     assert held(3.0) == 0.08 and held(5.0, 2.0) == 0.08
 
 
-def test_holds_after_a_rejected_run_ahead_are_held_as_read_and_doubted():
-    """Closed form at 0.5 m/s, a 2.5-s INS spread of 0.05 m/s, baseline 0.06 at level pitch:
-    a run-ahead -0.22 is rejected (back to 0.06), doubted (the check may have rejected a
-    run-ahead the body made). A change to 0.34 on a 6-degree rise (another slope: no return
-    to the baseline) is held as read, still doubted; so is its confirmation. A return to the
-    baseline at its pitch ends the doubt; so does a stop. A run-ahead rejected from a hold of
-    0.34 at the baseline's pitch is that return: no doubt; on the rise it stays."""
-    from slip_estimator.core.slip_model.chain import SlipChain
-    rise = math.radians(6.0)
-    def settle(chain, measured, previous, pitch_rad, run_ahead=False, t_s=0.0):
-        return chain.settle(measured, previous, 0.5, 0.05 ** 2, 0.05, False, False,
-                            run_ahead, pitch_rad, body_window_s=(t_s, t_s + 3.0))
-    def rejected():
-        chain = SlipChain(Params())
-        chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
-        assert settle(chain, -0.22, 0.06, 0.0, True, 10.0) == 0.06
-        return chain
-    chain = rejected()
-    assert chain.doubted
-    assert settle(chain, 0.34, 0.06, rise, t_s=20.0) == 0.34 and chain.doubted
-    assert settle(chain, 0.36, 0.34, rise, t_s=30.0) == 0.34 and chain.doubted
-    assert settle(chain, 0.08, 0.34, 0.0, t_s=40.0) == 0.06 and not chain.doubted
-    chain = rejected()
-    chain.reset()
-    assert not chain.doubted
-    for pitch_rad, doubted in ((0.0, False), (rise, True)):
-        chain = SlipChain(Params())
-        chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
-        assert settle(chain, 0.34, 0.06, rise, t_s=10.0) == 0.34 and not chain.doubted
-        assert settle(chain, -0.22, 0.34, pitch_rad, True, 20.0) == 0.06
-        assert chain.doubted == doubted
-
-
 @pytest.mark.parametrize('rate_hz', [10, 50])
 def test_a_wheel_side_change_is_measured_from_before_the_rim_began_to_move(rate_hz):
     """Over a crest the commanded rate falls (0.65 -> 0.5 m/s in 2 s) while the slope's slip
