@@ -34,6 +34,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -56,6 +57,19 @@ rim moves, as on the 50-Hz robot's patches (0.07-0.13 m/s), the INS may follow t
 _RUNAWAY_RATIO = (0.7, 1.3)
 """The INS's speed change over the check, relative to the acceleration removed times the
 check's span, that marks it as running away at that rate (the false take-backs: 0.82-1.17)."""
+
+
+@dataclass
+class _TakeBack:
+    """A take-back waiting for its check: when, its tilt and bias error state, the along-track
+    acceleration it removed, the forward speed then, and the rim speed at the first wheel
+    sample after it."""
+
+    t_ns: int
+    dx: np.ndarray
+    da_fwd_mps2: float
+    v_fwd_mps: float
+    rim_mps: float | None = None
 
 
 class HistoryPoint(NamedTuple):
@@ -94,7 +108,7 @@ class ForwardSpeedHistory:
         self._shift_mps = 0.0  # sum of the forward-speed corrections so far
         self._aid_v_mps, self._aid_a_mps2 = 0.0, 0.0
         self._taught: deque = deque()  # (stamp ns, dx) of the wheel aid's corrections
-        self._taken_back: list | None = None  # [t ns, dx, da m/s^2, v m/s, rim m/s]
+        self._taken_back: _TakeBack | None = None  # the last take-back, until checked
 
     def __len__(self) -> int:
         return len(self._rows)
@@ -147,8 +161,8 @@ class ForwardSpeedHistory:
             dx[ATT] += c.dx[ATT]
             dx[BA] += c.dx[BA]
         t_ns, now = self.newest()
-        self._taken_back = [t_ns, dx, sum(c.da_fwd_mps2 for c in corrections), now.v_fwd_mps,
-                            None]
+        self._taken_back = _TakeBack(t_ns, dx, sum(c.da_fwd_mps2 for c in corrections),
+                                     now.v_fwd_mps)
 
     def take_back_refuted(self, rim_mps: float, forward_n: np.ndarray) -> np.ndarray | None:
         """``TAKE_BACK_CHECK_S`` after a take-back (``rim_mps``: the rim speed now; ``forward_n``:
@@ -158,20 +172,21 @@ class ForwardSpeedHistory:
         tb = self._taken_back
         if tb is None:
             return None
-        if tb[4] is None:
-            tb[4] = rim_mps
+        if tb.rim_mps is None:
+            tb.rim_mps = rim_mps
         t_ns, now = self.newest()
-        if t_ns - tb[0] < int(TAKE_BACK_CHECK_S * _NS):
+        if t_ns - tb.t_ns < int(TAKE_BACK_CHECK_S * _NS):
             return None
         self._taken_back = None
-        removed_mps = tb[2] * TAKE_BACK_CHECK_S
-        dv_mps = now.v_fwd_mps - tb[3]
+        removed_mps = tb.da_fwd_mps2 * TAKE_BACK_CHECK_S
+        dv_mps = now.v_fwd_mps - tb.v_fwd_mps
         lo, hi = _RUNAWAY_RATIO
-        if abs(tb[2]) <= _RUNAWAY_MIN_MPS2 or abs(rim_mps - tb[4]) >= _STEADY_RIM_MPS \
+        if abs(tb.da_fwd_mps2) <= _RUNAWAY_MIN_MPS2 \
+                or abs(rim_mps - tb.rim_mps) >= _STEADY_RIM_MPS \
                 or not lo * abs(removed_mps) <= dv_mps * math.copysign(1.0, removed_mps) \
                 <= hi * abs(removed_mps):
             return None
-        dx = -tb[1]
+        dx = -tb.dx
         dx[VEL] = dv_mps * forward_n
         return dx
 
