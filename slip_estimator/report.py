@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from slip_estimator.evaluation import RunData, RunEvaluation
-from slip_estimator.ros.convert import header_stamp_ns
+from slip_estimator.ros.stamps import header_stamp_ns
 
 EST_SLIP_TOPIC = '/slip_estimator/slip'
 EST_SLIP_VECTOR_TOPIC = '/slip_estimator/slip_ratio'

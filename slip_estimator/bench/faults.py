@@ -32,7 +32,7 @@ import numpy as np
 from slip_estimator.bagio import BagWriter, read_messages
 from slip_estimator.core.params import Params
 from slip_estimator.ros.adapter import SlipEstimatorAdapter
-from slip_estimator.ros.convert import header_stamp_ns, ns_to_stamp
+from slip_estimator.ros.stamps import header_stamp_ns, ns_to_stamp
 from slip_estimator.ros.topics import (
     TOPIC_DIAGNOSTICS,
     TOPIC_IMU,

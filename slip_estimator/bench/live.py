@@ -200,7 +200,7 @@ def _publish(drive: _LiveDrive, pub_imu: Any, pub_js: Any) -> dict[str, Any]:
     ``per_wheel`` of them; returns the send counts and lateness."""
     from sensor_msgs.msg import Imu, JointState
 
-    from slip_estimator.ros.convert import ns_to_stamp
+    from slip_estimator.ros.stamps import ns_to_stamp
     from slip_estimator.sim.scenario import WHEEL_JOINT_NAMES
 
     period_ns = round(1e9 / drive.rate_imu_hz)
@@ -253,7 +253,7 @@ def live_worker(args: argparse.Namespace) -> int:
     from sensor_msgs.msg import Imu, JointState
 
     from slip_estimator.ros.topics import TOPIC_DIAGNOSTICS, TOPIC_IMU, TOPIC_ODOMETRY
-    from slip_estimator.ros.convert import header_stamp_ns
+    from slip_estimator.ros.stamps import header_stamp_ns
     from slip_estimator.ros.qos import input_qos, output_qos
 
     drive = _live_drive(args)

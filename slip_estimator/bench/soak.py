@@ -36,8 +36,8 @@ from sensor_msgs.msg import Imu, JointState
 from slip_estimator.bench import faults as F
 from slip_estimator.bench.machine import proc_rss_mb
 from slip_estimator.ros.adapter import SlipEstimatorAdapter
-from slip_estimator.ros.convert import ns_to_stamp
 from slip_estimator.ros.finite import message_is_finite
+from slip_estimator.ros.stamps import ns_to_stamp
 from slip_estimator.ros.topics import TOPIC_IMU, TOPIC_JOINT_STATES
 from slip_estimator.sim.bag import sim_params
 from slip_estimator.sim.drives import default_scenario

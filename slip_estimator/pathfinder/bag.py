@@ -20,7 +20,7 @@ from slip_estimator.pathfinder.rover import (
 
 
 def _stamp(msg_header, t_s: float) -> int:
-    from slip_estimator.ros.convert import ns_to_stamp
+    from slip_estimator.ros.stamps import ns_to_stamp
 
     ns = round(t_s * 1e9)
     msg_header.stamp = ns_to_stamp(ns)

@@ -28,8 +28,8 @@ from std_msgs.msg import Header
 
 from slip_estimator.core.types import Health, OdometryEstimate, SlipEstimate
 from slip_estimator.ros import msgbuild
-from slip_estimator.ros.convert import ns_to_stamp
 from slip_estimator.ros.msgbuild import build
+from slip_estimator.ros.stamps import ns_to_stamp
 
 SLIP_STATUS_NAME = 'slip_estimator: wheel slip'
 HEALTH_STATUS_NAME = 'slip_estimator: estimator'

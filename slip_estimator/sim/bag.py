@@ -50,7 +50,7 @@ ALL_TOPICS = (TOPIC_IMU, TOPIC_JOINTS, TOPIC_WHEEL_ODOM, TOPIC_GNSS, TOPIC_TRUTH
 
 
 def _stamp(msg_header: object, stamp_ns: int) -> None:
-    from slip_estimator.ros.convert import ns_to_stamp
+    from slip_estimator.ros.stamps import ns_to_stamp
 
     msg_header.stamp = ns_to_stamp(stamp_ns)  # type: ignore[attr-defined]
 

@@ -59,7 +59,7 @@ def inject_wheel_slip(in_bag: str | Path, out_bag: str | Path, t0_ns: int,
     faster than the body moves: injected slip. Returns the number of scaled samples.
     """
     from slip_estimator.bagio import BagWriter, read_messages
-    from slip_estimator.ros.convert import header_stamp_ns
+    from slip_estimator.ros.stamps import header_stamp_ns
 
     n = 0
     with BagWriter(out_bag) as writer:
