@@ -1,10 +1,11 @@
 """The estimator facade: IMU and wheel samples in, odometry, slip and health out.
 
 It owns its parts (the filter, measurement models, alignment, detectors and monitors, the
-supervisor, the forward-speed history, the wheel aid, the pure outputs) and moves data between
-them by calls and return values; no part calls back into it. A wheel sample describes the body
-``wheel_latency_s`` before its stamp, which the INS may not have reached yet: ``add_wheel``
-queues it, and the call that brings the INS past its stamp evaluates it (its slip, then the
+supervisor, the forward-speed history, the wheel aid, the wheel-sample update, the pure
+outputs) and moves data between them by calls and return values; no part calls back into it.
+A wheel sample describes the body ``wheel_latency_s`` before its stamp, which the INS may not
+have reached yet: ``add_wheel`` queues it, and the call that brings the INS past its stamp
+hands it to the :class:`~slip_estimator.core.wheel_update.WheelUpdate` (its slip, then the
 wheel aid).
 """
 from __future__ import annotations
@@ -19,22 +20,21 @@ from slip_estimator.core.alignment import (AlignmentCollector, AlignmentStart, f
 from slip_estimator.core.detectors import ImuRate, StationaryDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
-from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint, WheelQueue
+from slip_estimator.core.history import ForwardSpeedHistory, WheelQueue
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.odometry_guard import OdometryGuard
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, LocalEnu
-from slip_estimator.core.slip_model.aid_decision import AidDecision
 from slip_estimator.core.slip_model.model import CHANGE_LOOKBACK_S
-from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor
 from slip_estimator.core.timing import WheelTimingMonitor
+from slip_estimator.core.slip_model.wheel_aid import WheelAid
 from slip_estimator.core.types import (Health, ImuSample, OdometryEstimate, SlipEstimate,
                                        WheelSample, wheel_speeds)
 from slip_estimator.core.updater import Updater
-from slip_estimator.core.slip_model.wheel_aid import WheelAid
 from slip_estimator.core.wheel_odometry import WheelDeadReckoning
+from slip_estimator.core.wheel_update import WheelUpdate
 
 _NS = 1_000_000_000
 
@@ -78,6 +78,10 @@ class SlipEstimator:
         self.wheel_aid = WheelAid(p)
         self.slip_model = self.wheel_aid.slip_model
         self.odometry_guard = OdometryGuard()
+        self.wheel_update = WheelUpdate(
+            self.filter, self.history, self.stationary, self.imu_rate, self.wheel_aid,
+            self.odometry_guard, updater=self.updater, supervisor=self.supervisor,
+            monitor=self.monitor, forward=self.forward, wheel_latency_ns=self._wheel_latency_ns)
 
     @property
     def params(self) -> Params:
@@ -220,90 +224,13 @@ class SlipEstimator:
     def _evaluate_reached_wheels(self) -> list[SlipEstimate]:
         """The slip of every waiting wheel sample the INS has reached; "unknown" per timeout."""
         # Most IMU samples reach no wheel sample: no generator, no list made for them.
-        out = ([est for est in map(self._evaluate_wheel,
+        out = ([est for est in map(self.wheel_update.evaluate,
                                    self._waiting_wheels.reached(self.stamp_ns))
                 if est is not None] if self._waiting_wheels.any_reached(self.stamp_ns) else [])
         stale_ns = self.supervisor.wheels_stale(self.stamp_ns, self._aligned_ns)
         if stale_ns is not None:
-            out.append(self._unknown(stale_ns))
+            out.append(self.wheel_update.unknown(stale_ns))
         return out
-
-    def _evaluate_wheel(self, wheel: WheelSample) -> SlipEstimate | None:
-        """1. the body motion ``wheel_latency_s`` before its stamp, 2. the track width and yaw-rate
-        aid, 3. the slip (unknown while recovering: the rim re-anchors), 4. the wheel aid."""
-        restore = self.history.take_back_refuted(wheel.rim_speed_mps,
-                                                 self.filter.state.C_b_n[:, 0])
-        if restore is not None:  # the INS ran away from a take-back: the aid had it right
-            self.history.apply(self.filter.correct(restore), aid=False)
-        at = self.history.at(wheel.stamp_ns - self._wheel_latency_ns)
-        if at is None:
-            self.counters['wheel_late'] += 1
-            return None
-        # The yaw-rate aid compares the differential with the gyro over the wheel interval.
-        yaw_rate_rps = self.history.mean_yaw_rate_b_rps(
-            *self.updater.yaw_aid.rate_window_ns(wheel, self._wheel_latency_ns))
-        for correction in self.updater.wheel_yaw_rate(
-                self.filter, wheel, at.yaw_rate_b_rps if yaw_rate_rps is None else yaw_rate_rps,
-                self.stationary, self.imu_rate):
-            self.history.apply(correction, aid=False)
-        turning = self.updater.is_turning
-        if self.supervisor.recovering(wheel.stamp_ns):
-            self._apply_aid(self.wheel_aid.reanchor(wheel.rim_speed_mps, turning), at)
-            return self._unknown(wheel.stamp_ns, wheel.rim_speed_mps)
-        self.counters['slip_estimates'] += 1
-        st = self.filter.state
-        var_ins = self.filter.variance(self.forward.jacobian(st))
-        var_v = var_ins + self.wheel_aid.held_speed_var_mps2(wheel.rim_speed_mps)
-        rim_var = self.wheel_aid.rim_timing_var_mps2(wheel)
-        still = self.wheel_aid.stopping(wheel) or self.updater.is_stationary
-        est = outputs.slip_estimate(wheel, at.v_fwd_mps, at.yaw_rate_b_rps, var_v,
-                                    self.params, still, self.track.width_m, rim_var,
-                                    self.wheel_aid.held_slip,
-                                    self.wheel_aid.confidence(wheel.rim_speed_mps, turning))
-        self._apply_aid(self.wheel_aid.decide(
-            wheel, at, est, st.C_b_n, turning, self.filter.tilt_std_rad(),
-            self.filter.forward_reading_var_mps2(SCALES_S), var_ins), at)
-        self.odometry_guard.wheel(self.wheel_aid.odometry_decision(est))
-        return est
-
-    def _apply_aid(self, d: AidDecision | None, at: HistoryPoint) -> None:
-        """Carry out a wheel-aid decision (``at``: the history at the wheel sample's time)."""
-        if d is None:
-            return
-        if d.held_slip is not None:
-            self.monitor.add_held_slip(d.held_slip)
-        taken_back = None
-        if d.take_back_since_ns is not None:
-            # A change began there: what the aid taught since was the old slip's.
-            undo = -self.history.aid_taught_since(d.take_back_since_ns)
-            taken_back = self.filter.correct(undo)
-            self.history.apply(taken_back, aid=True)
-        if not d.update:
-            return
-        if not d.anchor:
-            self._aid_update(d.z_mps, at.v_fwd_mps, d.var_mps2, excluded=not d.repair)
-            return
-        # A known jump of the INS error (a change, or a settled measurement): not gated.
-        correction = self.filter.anchor(self.forward.innovation(d.z_mps, at.v_fwd_mps),
-                                        self.forward.jacobian(self.filter.state),
-                                        self.forward.covariance(d.var_mps2))
-        self.history.apply(correction, aid=not d.repair)
-        if taken_back is not None:  # checked against the INS TAKE_BACK_CHECK_S on
-            self.history.taken_back(taken_back, correction)
-
-    def _aid_update(self, z_mps: float, v_hist_mps: float, var_mps2: float,
-                    excluded: bool = True) -> None:
-        """Gated forward-speed update towards the aid value ``z_mps`` (``v_hist_mps``: the INS
-        value at the wheel sample's instant). The validation study overrides it."""
-        correction = self.updater.update(
-            self.filter, 'wheel', self.forward.innovation(z_mps, v_hist_mps),
-            self.forward.jacobian(self.filter.state), self.forward.covariance(var_mps2))
-        if correction is not None:
-            self.history.apply(correction, aid=excluded, taught=excluded)
-
-    def _unknown(self, stamp_ns: int, wheel_speed_mps: float = 0.0) -> SlipEstimate:
-        self.counters['slip_unknown'] += 1
-        return outputs.unknown_slip(stamp_ns, wheel_speed_mps)
 
     def _slip_before_alignment(self) -> list[SlipEstimate]:
         out = [outputs.slip_before_alignment(wheel, self.params, self.stationary.imu_steady())

@@ -241,12 +241,17 @@ def release_scatter(log: Any, params: Params, period_s: float = 3.0, release_s: 
         releases = np.arange(first, t_end, period_s)
 
         class Released(SlipEstimator):
-            def _aid_update(self, z_mps: float, v_hist: float, var: float,
-                            excluded: bool = True) -> None:
-                t = self.stamp_ns * 1e-9 - t0
-                k = np.searchsorted(releases, t, side='right') - 1
-                if k < 0 or t - releases[k] >= release_s:
-                    super()._aid_update(z_mps, v_hist, var, excluded)
+            def _reset_filter(self) -> None:
+                super()._reset_filter()
+                aid_update = self.wheel_update._aid_update
+
+                def released(z_mps: float, v_hist: float, var: float,
+                             excluded: bool = True) -> None:
+                    t = self.stamp_ns * 1e-9 - t0
+                    k = np.searchsorted(releases, t, side='right') - 1
+                    if k < 0 or t - releases[k] >= release_s:
+                        aid_update(z_mps, v_hist, var, excluded)
+                self.wheel_update._aid_update = released  # type: ignore[method-assign]
 
         _, _, odo = run_core(params, data, 5, Released)
         t = odo[:, 0] * 1e-9

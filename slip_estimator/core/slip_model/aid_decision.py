@@ -1,6 +1,6 @@
 """What the slip model tells the filter to do with one wheel sample's forward speed
 (:class:`AidDecision`, made by :mod:`slip_estimator.core.slip_model.model`, applied by
-:mod:`slip_estimator.core.estimator`). Only the standard library is used."""
+:mod:`slip_estimator.core.wheel_update`). Only the standard library is used."""
 from __future__ import annotations
 
 from dataclasses import dataclass
