@@ -38,21 +38,21 @@ class JointRatesFromPositions:
         last, self._last = self._last, (stamp_ns, positions)
         if last is None or not set(positions) & set(last[1]) or stamp_ns <= last[0]:
             return REASON_FIRST_POSITION
-        dt = (stamp_ns - last[0]) * 1e-9
+        dt_s = (stamp_ns - last[0]) * 1e-9
         out = {}
         for name, pos in positions.items():
             if name not in last[1]:
                 continue
-            d = pos - last[1][name]
-            if abs(abs(d) - 2.0 * math.pi) <= self.max_rate_rps * dt:
-                d -= math.copysign(2.0 * math.pi, d)  # wrapped at +-pi
-            if abs(d) > self.max_rate_rps * dt:
+            d_rad = pos - last[1][name]
+            if abs(abs(d_rad) - 2.0 * math.pi) <= self.max_rate_rps * dt_s:
+                d_rad -= math.copysign(2.0 * math.pi, d_rad)  # wrapped at +-pi
+            if abs(d_rad) > self.max_rate_rps * dt_s:
                 return REASON_POSITION_RESET
-            out[name] = d / dt
+            out[name] = d_rad / dt_s
         return out
 
 
-def wheel_from_joint_state(msg: JointState, names: Sequence[str], radius: float, *,
+def wheel_from_joint_state(msg: JointState, names: Sequence[str], wheel_radius_m: float, *,
                            max_speed_mps: float = math.inf,
                            from_positions: JointRatesFromPositions | None = None
                            ) -> WheelSample | str:
@@ -65,12 +65,12 @@ def wheel_from_joint_state(msg: JointState, names: Sequence[str], radius: float,
     velocities, ``from_positions`` (when given) differentiates the positions.
     """
     return wheel_from_joints(header_stamp_ns(msg), msg.name, msg.position, msg.velocity,
-                             names, radius, max_speed_mps=max_speed_mps,
+                             names, wheel_radius_m, max_speed_mps=max_speed_mps,
                              from_positions=from_positions)
 
 
-def wheel_from_cdr_joint_state(raw: bytes | memoryview, names: Sequence[str], radius: float, *,
-                               max_speed_mps: float = math.inf,
+def wheel_from_cdr_joint_state(raw: bytes | memoryview, names: Sequence[str],
+                               wheel_radius_m: float, *, max_speed_mps: float = math.inf,
                                from_positions: JointRatesFromPositions | None = None
                                ) -> WheelSample | str:
     """:func:`wheel_from_joint_state` of a serialized ``sensor_msgs/JointState``; a message
@@ -79,12 +79,13 @@ def wheel_from_cdr_joint_state(raw: bytes | memoryview, names: Sequence[str], ra
         js = cdr.joint_state_fields(raw)
     except cdr.CdrError as exc:
         return exc.reason
-    return wheel_from_joints(js.stamp_ns, js.name, js.position, js.velocity, names, radius,
-                             max_speed_mps=max_speed_mps, from_positions=from_positions)
+    return wheel_from_joints(js.stamp_ns, js.name, js.position, js.velocity, names,
+                             wheel_radius_m, max_speed_mps=max_speed_mps,
+                             from_positions=from_positions)
 
 
 def wheel_from_joints(stamp_ns: int, joint_names: Sequence[str], position: Sequence[float],
-                      velocity: Sequence[float], names: Sequence[str], radius: float, *,
+                      velocity: Sequence[float], names: Sequence[str], wheel_radius_m: float, *,
                       max_speed_mps: float = math.inf,
                       from_positions: JointRatesFromPositions | None = None
                       ) -> WheelSample | str:
@@ -96,63 +97,68 @@ def wheel_from_joints(stamp_ns: int, joint_names: Sequence[str], position: Seque
     if not present:
         return REASON_NO_WHEEL_JOINTS
     if len(velocity) == len(joint_names):
-        speeds = [radius * float(velocity[index[n]]) for n in present]
+        speeds_mps = [wheel_radius_m * float(velocity[index[n]]) for n in present]
     elif from_positions is not None and len(position) == len(joint_names):
         positions = {n: float(position[index[n]]) for n in present}
         if not all(math.isfinite(v) for v in positions.values()):
             return REASON_NON_FINITE
-        rates = from_positions.rates(stamp_ns, positions)
-        if isinstance(rates, str):
-            return rates
-        present = [n for n in present if n in rates]
-        speeds = [radius * rates[n] for n in present]
+        rates_rps = from_positions.rates(stamp_ns, positions)
+        if isinstance(rates_rps, str):
+            return rates_rps
+        present = [n for n in present if n in rates_rps]
+        speeds_mps = [wheel_radius_m * rates_rps[n] for n in present]
     else:
         return REASON_NO_VELOCITY
-    if not all(math.isfinite(v) for v in speeds):
+    if not all(math.isfinite(v) for v in speeds_mps):
         return REASON_NON_FINITE
-    if max(abs(v) for v in speeds) > max_speed_mps:
+    if max(abs(v) for v in speeds_mps) > max_speed_mps:
         return REASON_ABSURD_SPEED
-    left = [v for n, v in zip(present, speeds) if wheel_side(n) == 'left']
-    right = [v for n, v in zip(present, speeds) if wheel_side(n) == 'right']
+    left_mps = [v for n, v in zip(present, speeds_mps) if wheel_side(n) == 'left']
+    right_mps = [v for n, v in zip(present, speeds_mps) if wheel_side(n) == 'right']
     return WheelSample(stamp_ns=stamp_ns,
-                       rim_speed_mps=sum(speeds) / len(speeds),
-                       rim_speed_left_mps=sum(left) / len(left) if left else None,
-                       rim_speed_right_mps=sum(right) / len(right) if right else None)
+                       rim_speed_mps=sum(speeds_mps) / len(speeds_mps),
+                       rim_speed_left_mps=sum(left_mps) / len(left_mps) if left_mps else None,
+                       rim_speed_right_mps=(sum(right_mps) / len(right_mps) if right_mps
+                                            else None))
 
 
-def wheel_from_odometry(msg: Odometry, track: float, *,
+def wheel_from_odometry(msg: Odometry, track_width_m: float, *,
                         max_speed_mps: float = math.inf) -> WheelSample | str:
     """Rim speeds from a wheel-odometry ``nav_msgs/Odometry`` (differential-drive model).
 
     ``twist.twist.linear.x`` is the mean rim speed v (m/s) and ``angular.z`` the yaw rate w
-    (rad/s, FLU so counter-clockwise positive): ``v_left = v - w*track/2``,
-    ``v_right = v + w*track/2``.
+    (rad/s, FLU so counter-clockwise positive): ``v_left = v - w*track_width_m/2``,
+    ``v_right = v + w*track_width_m/2``.
     """
     return wheel_from_twist(header_stamp_ns(msg), msg.twist.twist.linear.x,
-                            msg.twist.twist.angular.z, track, max_speed_mps=max_speed_mps)
+                            msg.twist.twist.angular.z, track_width_m,
+                            max_speed_mps=max_speed_mps)
 
 
-def wheel_from_cdr_odometry(raw: bytes | memoryview, track: float, *,
+def wheel_from_cdr_odometry(raw: bytes | memoryview, track_width_m: float, *,
                             max_speed_mps: float = math.inf) -> WheelSample | str:
     """:func:`wheel_from_odometry` of a serialized ``nav_msgs/Odometry``; a message that does
     not decode gives its :mod:`cdr` rejection reason."""
     try:
-        stamp_ns, v, w = cdr.odometry_twist(raw)
+        stamp_ns, v_mps, yaw_rate_flu_rps = cdr.odometry_twist(raw)
     except cdr.CdrError as exc:
         return exc.reason
-    return wheel_from_twist(stamp_ns, v, w, track, max_speed_mps=max_speed_mps)
+    return wheel_from_twist(stamp_ns, v_mps, yaw_rate_flu_rps, track_width_m,
+                            max_speed_mps=max_speed_mps)
 
 
-def wheel_from_twist(stamp_ns: int, v: float, w: float, track: float, *,
-                     max_speed_mps: float = math.inf) -> WheelSample | str:
+def wheel_from_twist(stamp_ns: int, v_mps: float, yaw_rate_flu_rps: float,
+                     track_width_m: float, *, max_speed_mps: float = math.inf
+                     ) -> WheelSample | str:
     """:func:`wheel_from_odometry` of the stamp, forward speed and yaw rate of the message."""
     if stamp_ns <= 0:  # zero (never set) or before the epoch: not a usable time
         return REASON_ZERO_STAMP
-    v, w = float(v), float(w)
-    if not (math.isfinite(v) and math.isfinite(w)):
+    v_mps, yaw_rate_flu_rps = float(v_mps), float(yaw_rate_flu_rps)
+    if not (math.isfinite(v_mps) and math.isfinite(yaw_rate_flu_rps)):
         return REASON_NON_FINITE
-    left, right = v - 0.5 * w * track, v + 0.5 * w * track
-    if max(abs(v), abs(left), abs(right)) > max_speed_mps:
+    v_left_mps = v_mps - 0.5 * yaw_rate_flu_rps * track_width_m
+    v_right_mps = v_mps + 0.5 * yaw_rate_flu_rps * track_width_m
+    if max(abs(v_mps), abs(v_left_mps), abs(v_right_mps)) > max_speed_mps:
         return REASON_ABSURD_SPEED
-    return WheelSample(stamp_ns=stamp_ns, rim_speed_mps=v, rim_speed_left_mps=left,
-                       rim_speed_right_mps=right)
+    return WheelSample(stamp_ns=stamp_ns, rim_speed_mps=v_mps, rim_speed_left_mps=v_left_mps,
+                       rim_speed_right_mps=v_right_mps)
