@@ -26,10 +26,10 @@ from slip_estimator.core.odometry_guard import OdometryGuard
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import PLANETS, LocalEnu
 from slip_estimator.core.slip_model.model import CHANGE_LOOKBACK_S
+from slip_estimator.core.slip_model.wheel_aid import WheelAid
 from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor
 from slip_estimator.core.timing import WheelTimingMonitor
-from slip_estimator.core.slip_model.wheel_aid import WheelAid
 from slip_estimator.core.types import (Health, ImuSample, OdometryEstimate, SlipEstimate,
                                        WheelSample, wheel_speeds)
 from slip_estimator.core.updater import Updater
