@@ -70,6 +70,10 @@ class Confidence(NamedTuple):
     """the slip model's hold (None while it measures or at rest)"""
     p_wrong_departed: float = 0.0
     """probability that a reading departed from the hold is wrong: one reading more"""
+    doubted: bool = False
+    """the hold rests on a decision of the slip model's that the IMU cannot make (chained after
+    a rejected run-ahead): it resolves medium or worse only by the published P(medium+)
+    (:func:`~slip_estimator.core.outputs.slip_estimate`)"""
 
     def wrong_at(self, s: float) -> float:
         """Probability that the published reading ``s`` is wrong: :attr:`p_wrong_departed`
@@ -148,14 +152,18 @@ class ReadingRecord:
         return (self.n_disagreed + EPS_PRIOR_DISAGREED) / (self.n_reexamined + EPS_PRIOR_N)
 
     def confidence(self, held_slip: float | None, baseline: float | None,
-                   change_mps: float) -> Confidence:
+                   change_mps: float, doubt: float = 0.0) -> Confidence:
         """The :class:`Confidence` of a sample published with the hold ``held_slip``, the
         ``baseline`` and the step test's threshold ``change_mps`` (call after
-        :meth:`observe`)."""
-        return Confidence(resolution_var_mps2(change_mps),
-                          self.wrong_probability(held_slip, baseline),
-                          0.0 if baseline is None else baseline, held_slip,
-                          self.wrong_probability(held_slip, baseline, departed=True))
+        :meth:`observe`); ``doubt``: the probability that the hold is the ground's baseline
+        by a decision of the slip model's own (chained after a rejected run-ahead), on top of
+        its readings' (:attr:`Confidence.doubted`)."""
+        def wrong(departed: bool) -> float:
+            p = self.wrong_probability(held_slip, baseline, departed)
+            return 1.0 - (1.0 - p) * (1.0 - doubt)
+        return Confidence(resolution_var_mps2(change_mps), wrong(False),
+                          0.0 if baseline is None else baseline, held_slip, wrong(True),
+                          doubt > 0.0)
 
     def wrong_probability(self, held_slip: float | None, baseline: float | None,
                           departed: bool = False) -> float:

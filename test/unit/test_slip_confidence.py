@@ -167,6 +167,31 @@ def test_a_reading_off_the_hold_across_0_2_rests_on_one_reading_more():
         p_beyond_medium_bound(low.slip_ratio, low.slip_ratio_std))
 
 
+def test_a_doubted_hold_resolves_medium_only_by_the_published_probability():
+    """A hold of 0.30 (body 0.7 m/s +- 0.01, rim 1.0) chained after a rejected run-ahead
+    (doubt 0.5, the ground's baseline 0.05): P(medium+) = 0.5 Phi(0.1 / sd) + 0.5
+    Phi(-0.15 / sd), about 0.5, below RESOLVED_P: published low, unresolved, its ratio the
+    reading's. Undoubted, the same hold is medium."""
+    rec = ReadingRecord()
+    rec.observe(None, None, True)
+    rec.observe(None, None, False)
+    rec.observe(0.05, 0.05, False)
+    rec.observe(None, 0.05, False)  # an alarm, then the change settles
+    rec.observe(0.3, 0.05, False)
+    p, wheel = Params(), WheelSample(7, 1.0)
+    plain_c = rec.confidence(0.3, 0.05, 0.0)
+    doubted_c = rec.confidence(0.3, 0.05, 0.0, doubt=0.5)
+    assert doubted_c.doubted and not plain_c.doubted
+    assert doubted_c.p_wrong == pytest.approx(1.0 - (1.0 - plain_c.p_wrong) * 0.5)
+    plain = slip_estimate(wheel, 0.7, 0.0, 1e-4, p, False, 1.0, held_slip=0.3,
+                          confidence=plain_c)
+    est = slip_estimate(wheel, 0.7, 0.0, 1e-4, p, False, 1.0, held_slip=0.3,
+                        confidence=doubted_c)
+    assert (plain.slip_class, plain.resolved) == (2, True)
+    assert est.p_medium_or_worse < RESOLVED_P
+    assert (est.slip_class, est.resolved, est.slip_ratio) == (1, False, plain.slip_ratio)
+
+
 class _Plain(SlipEstimator):
     """The estimator publishing the filter's reading only."""
 

@@ -469,6 +469,65 @@ def test_a_measurement_on_another_slope_is_not_snapped_to_the_baseline():
     assert held(3.0) == 0.08 and held(5.0, 2.0) == 0.08
 
 
+def test_holds_after_a_rejected_run_ahead_are_held_as_read_and_doubted():
+    """Closed form at 0.5 m/s, a 2.5-s INS spread of 0.05 m/s, baseline 0.06 at level pitch:
+    a run-ahead -0.22 is rejected (back to 0.06), doubted (the check may have rejected a
+    run-ahead the body made). A change to 0.34 on a 6-degree rise (another slope: no return
+    to the baseline) is held as read, still doubted; so is its confirmation. A return to the
+    baseline at its pitch ends the doubt; so does a stop. A run-ahead rejected from a hold of
+    0.34 at the baseline's pitch is that return: no doubt; on the rise it stays."""
+    from slip_estimator.core.slip_model.chain import SlipChain
+    rise = math.radians(6.0)
+    def settle(chain, measured, previous, pitch_rad, run_ahead=False, t_s=0.0):
+        return chain.settle(measured, previous, 0.5, 0.05 ** 2, 0.05, False, False,
+                            run_ahead, pitch_rad, body_window_s=(t_s, t_s + 3.0))
+    def rejected():
+        chain = SlipChain(Params())
+        chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+        assert settle(chain, -0.22, 0.06, 0.0, True, 10.0) == 0.06
+        return chain
+    chain = rejected()
+    assert chain.doubted
+    assert settle(chain, 0.34, 0.06, rise, t_s=20.0) == 0.34 and chain.doubted
+    assert settle(chain, 0.36, 0.34, rise, t_s=30.0) == 0.34 and chain.doubted
+    assert settle(chain, 0.08, 0.34, 0.0, t_s=40.0) == 0.06 and not chain.doubted
+    chain = rejected()
+    chain.reset()
+    assert not chain.doubted
+    for pitch_rad, doubted in ((0.0, False), (rise, True)):
+        chain = SlipChain(Params())
+        chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+        assert settle(chain, 0.34, 0.06, rise, t_s=10.0) == 0.34 and not chain.doubted
+        assert settle(chain, -0.22, 0.34, pitch_rad, True, 20.0) == 0.06
+        assert chain.doubted == doubted
+    # Beyond MAX_SLIP (the body at twice the rim speed: an IMU spike, not ground) the
+    # rejection is certain: nothing after it is doubted.
+    chain = SlipChain(Params())
+    chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+    assert settle(chain, -0.8, 0.06, rise, True, 10.0) == 0.06 and not chain.doubted
+
+
+
+def test_only_a_body_side_rejected_run_ahead_doubts_the_holds_after_it():
+    """Closed form at 0.73 m/s, a 2.5-s INS spread of 0.05 m/s, baseline 0.045 at level
+    pitch (the real test17run with an injected wheel-side x1.3 window the hold missed). The
+    rim steps down 0.96 -> 0.73 under a body that kept its speed: the wheel-side change reads
+    -0.20, a run-ahead no slope explains, back to 0.045. The rim stepped, the body did not:
+    the wheels stopped spinning, and the baseline is the ground again, so the next change
+    (to 0.52, the x2.0 window) is not doubted. The same -0.20 read on the body side (a steady
+    rim, the INS's word alone: the body may have run ahead) doubts the 0.52 after it."""
+    from slip_estimator.core.slip_model.chain import SlipChain
+    def after(body_window_s):
+        chain = SlipChain(Params())
+        chain.settle(0.045, None, 0.73, 0.05 ** 2, 0.05, True, False, False)
+        assert chain.settle(-0.20, 0.045, 0.73, 0.05 ** 2, 0.05, False, False, True,
+                            math.radians(-1.0), body_window_s=body_window_s) == 0.045
+        doubted = chain.doubted
+        assert chain.settle(0.52, 0.045, 0.73, 0.05 ** 2, 0.05, False, False, False) == 0.52
+        return doubted, chain.doubted
+    assert after(None) == (False, False)
+    assert after((10.0, 13.0)) == (True, True)
+
 @pytest.mark.parametrize('rate_hz', [10, 50])
 def test_a_wheel_side_change_is_measured_from_before_the_rim_began_to_move(rate_hz):
     """Over a crest the commanded rate falls (0.65 -> 0.5 m/s in 2 s) while the slope's slip

@@ -19,7 +19,7 @@ from slip_estimator.core.odometry_guard import GuardDecision, decide, ins_speed_
 from slip_estimator.core.params import Params
 from slip_estimator.core.slip_confidence import Confidence, ReadingRecord
 from slip_estimator.core.slip_model.aid_decision import AidDecision
-from slip_estimator.core.slip_model.chain import ASSUMED_SLIP_STD
+from slip_estimator.core.slip_model.chain import ASSUMED_SLIP_STD, REJECTED_DOUBT
 from slip_estimator.core.slip_model.model import Mode, SlipModel
 from slip_estimator.core.slip_model.rim_memory import rim_steady
 from slip_estimator.core.slip_model.step_test import SCALES_S
@@ -111,8 +111,9 @@ class WheelAid:
             return Confidence()
         held, model = self.held_slip, self.slip_model
         self.readings.observe(held, model.baseline, model.mode is Mode.REST)
+        doubt = REJECTED_DOUBT if held is not None and model.chain.doubted else 0.0
         return self.readings.confidence(held, model.baseline,
-                                        model.body_change_mps(rim_speed_mps, turning))
+                                        model.body_change_mps(rim_speed_mps, turning), doubt)
 
     def odometry_decision(self, est: SlipEstimate) -> GuardDecision:
         """Whether the published odometry falls back to wheels + gyro at this sample
