@@ -31,7 +31,8 @@ def test_a_tilt_step_at_the_first_zupt_is_the_stops_closure() -> None:
     roll[i:] += 0.2
     pitch[i:] -= 0.3
     pitch[i + 1:] -= 0.1 * np.clip((t[i + 1:] - t[i]) / 0.5, 0.0, 1.0)
-    stops = stop_closures(t, np.radians(roll), np.radians(pitch), still)
+    v_fwd = np.where(t < 22.0, 0.03, 0.0)                # 0.03 m/s left at the stop
+    stops = stop_closures(t, np.radians(roll), np.radians(pitch), still, v_fwd)
     assert len(stops) == 1
     s = stops[0]
     assert s['t_s'] == pytest.approx(22.0)
@@ -39,6 +40,7 @@ def test_a_tilt_step_at_the_first_zupt_is_the_stops_closure() -> None:
     assert (s['first_roll_deg'], s['first_pitch_deg']) == pytest.approx((0.2, -0.3))
     assert (s['level_roll_deg'], s['level_pitch_deg']) == pytest.approx((0.2, -0.4))
     assert s['stop_s'] == pytest.approx(3.0 - DT_S)
+    assert s['v_stop_mps'] == pytest.approx(0.03)
 
 
 def test_flicker_is_not_a_stop_and_a_short_stop_has_no_level_figure() -> None:
@@ -59,7 +61,8 @@ def test_summary_medians_and_the_rate_per_root_second() -> None:
     """Tilts of 5, 10 and 15 deg (3-4-5 triangles) after 25-s drives: median 10, 90th
     percentile 14, rate median 10 / 5 = 2 deg/sqrt(s); no levelled figure -> NaN."""
     stops = [{'drive_s': 25.0, 'first_roll_deg': 3.0 * k, 'first_pitch_deg': -4.0 * k,
-              'level_roll_deg': math.nan, 'level_pitch_deg': math.nan} for k in (1, 2, 3)]
+              'level_roll_deg': math.nan, 'level_pitch_deg': math.nan,
+              'v_stop_mps': -0.02 * k} for k in (1, 2, 3)]
     s = summarize(stops)
     assert s['n'] == 3 and s['drive_s'] == 25.0
     assert s['first_tilt_median_deg'] == pytest.approx(10.0)
@@ -67,19 +70,36 @@ def test_summary_medians_and_the_rate_per_root_second() -> None:
     assert s['first_pitch_median_deg'] == pytest.approx(8.0)
     assert s['first_tilt_rate_deg_rts'] == pytest.approx(2.0)
     assert math.isnan(s['level_tilt_median_deg']) and s['level_n'] == 0
+    assert s['v_stop_median_mps'] == pytest.approx(0.04)
+    assert s['gain_median_deg_per_mps'] == pytest.approx(200.0)  # 4 deg per 0.02 m/s
 
 
 def test_the_recorder_reads_roll_and_pitch_of_the_filter_attitude() -> None:
-    """C_b_n built from roll 3 deg, pitch -7 deg: the recorder returns them (rad); nothing
+    """C_b_n built from roll 3 deg, pitch -7 deg, heading north, moving 0.5 m/s north: the
+    recorder returns the roll and pitch (rad) and the forward speed 0.5 cos(pitch); nothing
     is recorded before alignment."""
     est = SimpleNamespace(aligned=False, updater=SimpleNamespace(is_stationary=True),
                           filter=SimpleNamespace(state=SimpleNamespace(
-                              C_b_n=rpy_to_dcm(math.radians(3.0), math.radians(-7.0), 1.0))))
+                              C_b_n=rpy_to_dcm(math.radians(3.0), math.radians(-7.0), 0.0),
+                              v_eb_n=np.array([0.5, 0.0, 0.0]))))
     rec = StopTiltRecorder(est)
     rec(SimpleNamespace(stamp_ns=1_000_000_000))
     est.aligned = True
     rec(SimpleNamespace(stamp_ns=2_000_000_000))
     assert len(rec.rows) == 1
-    t, roll, pitch, still = rec.rows[0]
+    t, roll, pitch, still, v_fwd = rec.rows[0]
     assert (t, math.degrees(roll), math.degrees(pitch), still) == pytest.approx(
         (2.0, 3.0, -7.0, True))
+    assert v_fwd == pytest.approx(0.5 * math.cos(math.radians(-7.0)))  # 0.5 m/s north
+
+
+def test_the_stop_and_go_drive_has_s5t1s_shape() -> None:
+    """Nine legs of 10-16 s at 0.4-0.7 m/s, each followed by a 2-3.5 s stop, between rests."""
+    from slip_estimator.sim.drives import stop_and_go_scenario
+
+    segs = stop_and_go_scenario(3).segments
+    legs, stops = segs[1:-1:2], segs[2:-1:2]
+    assert len(legs) == len(stops) == 9
+    assert segs[0].speed_mps == segs[-1].speed_mps == 0.0
+    assert all(10.0 <= s.duration_s <= 16.0 and 0.4 <= s.speed_mps <= 0.7 for s in legs)
+    assert all(2.0 <= s.duration_s <= 3.5 and s.speed_mps == 0.0 for s in stops)
