@@ -1,5 +1,5 @@
 """Tilt closure at stops: how far the filter's tilt moves when a stop's zero velocity levels it,
-the same statistic on the real Pathfinder logs and on the simulator's drives (issue 27).
+the same statistic on the real Pathfinder logs and on simulated drives of their shape (issue 27).
 
 While driving, the filter's roll and pitch carry whatever error the gyro and the wheel aid
 leave; at a stop the zero-velocity update (ZUPT) levels the INS again (the updater reopens the
@@ -17,15 +17,19 @@ function, :func:`stop_closures`:
   stop still stationary :data:`LEVEL_S` + :data:`RESTART_MARGIN_S` after it (a stop's last
   half second already carries the restart's real pitching, which the detector sees late);
   NaN otherwise;
-* ``drive_s``: the driving time before the stop.
+* ``v_stop_mps``: the filter's forward speed before the first ZUPT (its innovation: the truth
+  is at rest), and ``drive_s``, the driving time before the stop.
 
-:func:`summarize` gives per source the median and 90th percentile of |delta| and the median
-rate |delta| / sqrt(drive), deg/sqrt(s) (an angle random walk's closure grows as the square
-root of the drive; the drives differ: s5t1 10-22 s, test17run 50 s, the simulated legs 30-75 s).
-:func:`submit_closures` runs every source on a worker pool (``slip-estimator validate``
-runs them beside its serial core-level evidence runs); the report's section is
-:func:`slip_estimator.validation.sections_evidence.stop_tilt`. Only numpy, the core, the
-simulator and the log reader are used.
+:func:`summarize` gives per source the median and 90th percentile of each |delta|, the median
+rate |delta| / sqrt(drive), deg/sqrt(s), and the first ZUPT's pitch per m/s of the speed it
+removes. Measured (session 21): the first ZUPT's tilt follows the speed at the stop through
+the velocity-tilt correlation (2-3 deg per m/s on both sources) and does not shrink with a
+shorter drive on the simulator, so a rate per sqrt(s) does not make drives of different shape
+comparable: the simulated sources (:data:`SIM_SOURCES`) have each real log's shape.
+:func:`submit_closures` runs every source on a worker pool (``slip-estimator validate`` runs
+them beside its serial core-level evidence runs); the report's section is
+:func:`slip_estimator.validation.sections_evidence.stop_tilt_section`. Only numpy, the core,
+the simulator and the log reader are used.
 """
 from __future__ import annotations
 
@@ -43,19 +47,29 @@ LEVEL_S = 1.0
 """Span after the first ZUPT over which the stop's levelling is taken, s."""
 RESTART_MARGIN_S = 0.5
 """A stop must stay stationary this long past :data:`LEVEL_S` for its ``level`` figure, s."""
-PATHFINDER_SIM = 'sim measured_no_slip (Pathfinder IMU)'
-CONSUMER_SIM = 'sim skid_steer_30hz_no_slip (consumer IMU, 30 Hz)'
-SIM_SEEDS = {PATHFINDER_SIM: (0, 1), CONSUMER_SIM: (0, 1, 2)}
-"""The simulated drives by source: the measured Pathfinder IMU and rocking over the 600-s
-patches drive (11-12 stops each), the vibrating consumer robot (one 10-s stop each)."""
+GAIN_MIN_SPEED_MPS = 0.003
+"""Stops whose speed before the first ZUPT is below this give no gain figure, m/s."""
+SIM_SOURCES: dict[str, tuple[str, tuple[int, ...], str]] = {
+    'sim Pathfinder IMU, test17run shape': ('straight', (0, 1, 2, 3), 'real test17run'),
+    'sim Pathfinder IMU, s5t1 shape': ('stop_and_go', (0, 1, 2), 'real s5t1'),
+    'sim consumer IMU 30 Hz (skid_steer_30hz_no_slip)': ('consumer', (0, 1, 2), ''),
+}
+"""The simulated sources: label -> (drive, seeds, the real log of the same shape or '').
+The Pathfinder IMU is the measured grade with the measured chassis rocking
+(:func:`~slip_estimator.sim.drives.measured_ground`) over ground without slip, on drives
+shaped like each real log (:func:`~slip_estimator.sim.drives.straight_scenario`: one 52-s
+leg; :func:`~slip_estimator.sim.drives.stop_and_go_scenario`: nine 10-16-s legs); the consumer
+robot (vibrating 30-Hz IMU, one 10-s stop after ~240 s) has no real log to be judged against."""
 
 
 def stop_closures(t_s: np.ndarray, roll_rad: np.ndarray, pitch_rad: np.ndarray,
-                  stationary: np.ndarray) -> list[dict[str, float]]:
+                  stationary: np.ndarray, v_fwd_mps: np.ndarray | None = None
+                  ) -> list[dict[str, float]]:
     """Per stop (module docstring) its ``t_s`` (first ZUPT), ``drive_s``, ``first_roll_deg``,
-    ``first_pitch_deg``, ``level_roll_deg``, ``level_pitch_deg``, ``stop_s``; from the
-    filter's tilt after each IMU sample (``t_s`` ascending, from alignment on) and the
-    updater's stationarity then."""
+    ``first_pitch_deg``, ``level_roll_deg``, ``level_pitch_deg``, ``stop_s`` and
+    ``v_stop_mps`` (the filter's forward speed before the first ZUPT: its innovation); from
+    the filter's tilt (and forward speed) after each IMU sample (``t_s`` ascending, from
+    alignment on) and the updater's stationarity then."""
     t = np.asarray(t_s, dtype=float)
     still = np.asarray(stationary, dtype=bool)
     tilt = np.degrees(np.column_stack([roll_rad, pitch_rad]))
@@ -77,7 +91,8 @@ def stop_closures(t_s: np.ndarray, roll_rad: np.ndarray, pitch_rad: np.ndarray,
         level = tilt[k] - tilt[i - 1] if settled else np.full(2, math.nan)
         out.append({'t_s': float(t[i]), 'drive_s': drive_s, 'stop_s': float(t[j - 1] - t[i]),
                     'first_roll_deg': float(first[0]), 'first_pitch_deg': float(first[1]),
-                    'level_roll_deg': float(level[0]), 'level_pitch_deg': float(level[1])})
+                    'level_roll_deg': float(level[0]), 'level_pitch_deg': float(level[1]),
+                    'v_stop_mps': math.nan if v_fwd_mps is None else float(v_fwd_mps[i - 1])})
     return out
 
 
@@ -87,22 +102,24 @@ class StopTiltRecorder:
 
     def __init__(self, est: Any) -> None:
         self.est = est
-        self.rows: list[tuple[float, float, float, bool]] = []
+        self.rows: list[tuple[float, float, float, bool, float]] = []
 
     def __call__(self, sample: Any) -> None:
         est = self.est
         if not est.aligned:
             return
-        C = est.filter.state.C_b_n
+        st = est.filter.state
+        C = st.C_b_n
         self.rows.append((sample.stamp_ns * 1e-9, math.atan2(C[2, 1], C[2, 2]),
-                          -math.asin(max(-1.0, min(1.0, C[2, 0]))), est.updater.is_stationary))
+                          -math.asin(max(-1.0, min(1.0, C[2, 0]))), est.updater.is_stationary,
+                          float(C[:, 0] @ st.v_eb_n)))
 
     def closures(self) -> list[dict[str, float]]:
         """:func:`stop_closures` of what was recorded."""
         if len(self.rows) < 2:
             return []
-        t, roll, pitch, still = (np.array(c) for c in zip(*self.rows))
-        return stop_closures(t, roll, pitch, still)
+        t, roll, pitch, still, v_fwd = (np.array(c) for c in zip(*self.rows))
+        return stop_closures(t, roll, pitch, still, v_fwd)
 
 
 def run_closures(params: Any, data: Any) -> list[dict[str, float]]:
@@ -128,17 +145,21 @@ def _real_task(args: tuple[str, str, dict[str, Any]]) -> list[dict[str, float]]:
 
 def _sim_task(args: tuple[str, int]) -> list[dict[str, float]]:
     from slip_estimator.sim import simulate
-    from slip_estimator.sim.bag import SCENARIOS, sim_params
+    from slip_estimator.sim.bag import sim_params
+    from slip_estimator.sim.drives import (measured_ground, no_slip, stop_and_go_scenario,
+                                           straight_scenario)
     from slip_estimator.sim.robots import ROBOTS
     from slip_estimator.streams import from_simulation
 
     label, seed = args
-    if label == CONSUMER_SIM:
+    drive = SIM_SOURCES[label][0]
+    if drive == 'consumer':
         profile = ROBOTS['skid_steer_30hz_no_slip'](seed)
         r = simulate(profile.scenario)
         p = sim_params(r, profile.wheel_input, profile.joint_columns)
     else:
-        r = simulate(SCENARIOS['measured_no_slip'](seed))
+        shape = straight_scenario if drive == 'straight' else stop_and_go_scenario
+        r = simulate(measured_ground(no_slip(shape(seed))))
         p = sim_params(r)
     return run_closures(p, from_simulation(r, p))
 
@@ -151,10 +172,10 @@ def submit_closures(pool: Executor, real: dict[str, tuple[str | Path, Any]]
                     ) -> Callable[[], dict[str, list[dict[str, float]]]]:
     """Submit every source's drives to ``pool``; returns the call that waits for them and
     gives every stop by source label (the real logs first). ``real`` maps a log's name to its
-    ``.mat`` path and the shipped params for it; the simulated sources are :data:`SIM_SEEDS`
+    ``.mat`` path and the shipped params for it; the simulated sources are :data:`SIM_SOURCES`
     (their default params: the shipped model)."""
-    tasks: list[tuple[Any, ...]] = [(label, seed) for label, seeds in SIM_SEEDS.items()
-                                    for seed in seeds]  # the long simulated drives first
+    tasks: list[tuple[Any, ...]] = [(label, seed) for label, (_, seeds, _) in
+                                    SIM_SOURCES.items() for seed in seeds]
     tasks += [(f'real {name}', str(mat), p.to_dict()) for name, (mat, p) in real.items()]
     futures = [pool.submit(_task, a) for a in tasks]
 
@@ -162,7 +183,7 @@ def submit_closures(pool: Executor, real: dict[str, tuple[str | Path, Any]]
         out: dict[str, list[dict[str, float]]] = {}
         for a, f in zip(tasks, futures):
             out.setdefault(a[0], []).extend(f.result())
-        return {k: out[k] for k in sorted(out, key=lambda k: not k.startswith('real'))}
+        return out
     return gather
 
 
@@ -176,11 +197,15 @@ def closure_sources(real: dict[str, tuple[str | Path, Any]], jobs: int = 2
 
 
 def summarize(stops: Sequence[dict[str, float]]) -> dict[str, float]:
-    """Over ``stops``: their number, the median drive, and for ``first`` and ``level`` (roll,
+    """Over ``stops``: their number, the median drive, the median and 90th percentile of the
+    forward speed the first ZUPT removed (m/s), and for ``first`` and ``level`` (roll,
     pitch, and the tilt |(roll, pitch)|) the median and 90th percentile of |delta|, deg, and
     the median of |delta| / sqrt(drive_s), deg/sqrt(s). NaN where no stop has the figure."""
+    v_stop = np.abs([s['v_stop_mps'] for s in stops])
     out: dict[str, float] = {'n': float(len(stops)),
-                             'drive_s': _pct([s['drive_s'] for s in stops], 50)}
+                             'drive_s': _pct([s['drive_s'] for s in stops], 50),
+                             'v_stop_median_mps': _pct(v_stop, 50),
+                             'v_stop_p90_mps': _pct(v_stop, 90)}
     for kind in ('first', 'level'):
         roll = np.array([s[f'{kind}_roll_deg'] for s in stops], dtype=float)
         pitch = np.array([s[f'{kind}_pitch_deg'] for s in stops], dtype=float)
@@ -192,6 +217,10 @@ def summarize(stops: Sequence[dict[str, float]]) -> dict[str, float]:
             out[f'{kind}_{axis}_rate_deg_rts'] = _pct(d / np.sqrt(drive), 50) if len(d) \
                 else math.nan
         out[f'{kind}_n'] = float(np.isfinite(roll).sum())
+    # The first ZUPT's pitch per m/s of the speed it removes: the velocity-tilt gain.
+    gain = [abs(s['first_pitch_deg']) / abs(s['v_stop_mps']) for s in stops
+            if abs(s['v_stop_mps']) > GAIN_MIN_SPEED_MPS]
+    out['gain_median_deg_per_mps'] = _pct(gain, 50)
     return out
 
 
