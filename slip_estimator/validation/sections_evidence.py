@@ -269,7 +269,7 @@ def stop_tilt_section(closures: dict[str, list[dict[str, float]]] | None) -> lis
                    'the speed error at the stop through the filter\'s velocity-tilt '
                    'correlation (its gain is of one size on both sources), and the tilt over '
                    f'{LEVEL_S:g} s is what the rest levels after it: the filter arrives at the '
-                   'stop with a larger speed and tilt error on the simulator, which the gyro\'s '
+                   'stop with a larger speed or tilt error on the simulator, which the gyro\'s '
                    'tilt wander does not explain (its rows in `docs/sim-vs-real.md` match the '
                    'real log). Which simulated mechanism sets it, measured by switching each '
                    'off: `docs/limits.md`, "The simulated stop closure".'), '']
