@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor
+from concurrent.futures import Executor
 from pathlib import Path
 from typing import Any
 
@@ -171,7 +171,7 @@ def _task(args: tuple[Any, ...]) -> list[dict[str, float]]:
 def submit_closures(pool: Executor, real: dict[str, tuple[str | Path, Any]]
                     ) -> Callable[[], dict[str, list[dict[str, float]]]]:
     """Submit every source's drives to ``pool``; returns the call that waits for them and
-    gives every stop by source label (the real logs first). ``real`` maps a log's name to its
+    gives every stop by source label (``real <log>`` for a real log). ``real`` maps a log's name to its
     ``.mat`` path and the shipped params for it; the simulated sources are :data:`SIM_SOURCES`
     (their default params: the shipped model)."""
     tasks: list[tuple[Any, ...]] = [(label, seed) for label, (_, seeds, _) in
@@ -185,15 +185,6 @@ def submit_closures(pool: Executor, real: dict[str, tuple[str | Path, Any]]
             out.setdefault(a[0], []).extend(f.result())
         return out
     return gather
-
-
-def closure_sources(real: dict[str, tuple[str | Path, Any]], jobs: int = 2
-                    ) -> dict[str, list[dict[str, float]]]:
-    """:func:`submit_closures` on ``jobs`` spawned workers, waited for."""
-    import multiprocessing as mp
-
-    with ProcessPoolExecutor(jobs, mp_context=mp.get_context('spawn')) as pool:
-        return submit_closures(pool, real)()
 
 
 def summarize(stops: Sequence[dict[str, float]]) -> dict[str, float]:
