@@ -233,6 +233,23 @@ def straight_scenario(seed: int = 0, noise_seed: int | None = None, drive_s: flo
                           noise_seed=seed + 1 if noise_seed is None else noise_seed)
 
 
+def stop_and_go_scenario(seed: int = 0, noise_seed: int | None = None) -> ScenarioConfig:
+    """The real s5t1's shape: 12 s at rest, nine legs of 10-16 s at 0.4-0.7 m/s (straight or
+    arcs of up to 0.2 rad/s), each ended by a stop of 2-3.5 s (2 s of it braking), 15 s at
+    rest. For the tilt closure at stops on simulated and real drives of the same shape
+    (:mod:`slip_estimator.validation.stop_tilt`)."""
+    rng = np.random.default_rng(seed)
+    b = _Builder(rng)
+    b.add(12.0, label='stationary')
+    for _ in range(9):
+        b.add(float(rng.uniform(10.0, 16.0)), float(rng.uniform(0.4, 0.7)),
+              float(rng.choice([0.0, 0.1, -0.1, 0.2, -0.2])), label='leg')
+        b.add(float(rng.uniform(2.0, 3.5)), label='stop')
+    b.add(15.0, label='final stop')
+    return ScenarioConfig(tuple(b.segments), truth_seed=seed,
+                          noise_seed=seed + 1 if noise_seed is None else noise_seed)
+
+
 def measured_ground(cfg: ScenarioConfig) -> ScenarioConfig:
     """The same drive with the IMU error mechanisms measured on the real Pathfinder
     (:meth:`~.imu_grades.ImuErrorConfig.pathfinder_measured`) and its chassis rocking added to

@@ -13,8 +13,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 from slip_estimator.validation.configs import COMMAND
-from slip_estimator.validation.sections import (Page, before_after, header, notes, trajectories,
-                                                truth, undeclared, unexplained, what_was_run)
+from slip_estimator.validation.sections import (Page, before_after, header, notes,
+                                                stop_tilt, trajectories, truth, undeclared,
+                                                unexplained, what_was_run)
 from slip_estimator.validation.sections_effects import (effect_b, effect_c, effect_d, effect_e,
                                                         effect_f)
 from slip_estimator.validation.study import Study
@@ -42,6 +43,7 @@ TEMPLATE = """\
 
 {trajectories}
 {undeclared}
+{stop_tilt}
 ## What remains unexplained
 
 {unexplained}
@@ -53,7 +55,7 @@ TEMPLATE = """\
 SECTIONS: dict[str, Callable[[Page], list[str]]] = {
     section.__name__: section for section in (
         header, what_was_run, truth, before_after, effect_b, effect_c, effect_d, effect_e,
-        effect_f, trajectories, undeclared, unexplained, notes)}
+        effect_f, trajectories, undeclared, stop_tilt, unexplained, notes)}
 """Section functions by the name of their ``{name}`` line in :data:`TEMPLATE`."""
 
 _SLOT = re.compile(r'^\{(\w+)\}$')

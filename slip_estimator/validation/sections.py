@@ -8,7 +8,8 @@ from pathlib import Path
 
 from slip_estimator.effects import TEST17RUN_WINDOWS
 from slip_estimator.validation.configs import COMMAND, CONFIG_BY_KEY, RTK_LOG
-from slip_estimator.validation.sections_evidence import undeclared_section
+from slip_estimator.validation.sections_evidence import (stop_tilt_section,
+                                                         undeclared_section)
 from slip_estimator.validation.study import Study
 from slip_estimator.validation.tables import (fmt, md_table, metric_of, nav_table, slip_table,
                                               window_table)
@@ -196,6 +197,11 @@ def trajectories(page: Page) -> list[str]:
 def undeclared(page: Page) -> list[str]:
     """Undeclared effects."""
     return undeclared_section(page.study.evidence.get('undeclared'))
+
+
+def stop_tilt(page: Page) -> list[str]:
+    """The tilt closure at stops, real against simulated."""
+    return stop_tilt_section(page.study.evidence.get('stop_tilt'))
 
 
 def unexplained(page: Page) -> list[str]:

@@ -33,9 +33,11 @@ from slip_estimator.validation.configs import (
     LOGS,
     RTK_LOG,
     Measured,
+    cfg_d,
     say,
 )
 from slip_estimator.validation.evidence import collect_evidence
+from slip_estimator.validation.stop_tilt import submit_closures
 
 @dataclass
 class LogInput:
@@ -279,7 +281,8 @@ def run_study(data_dir: Path = DEFAULT_DATA_DIR, work_dir: Path | None = None,
     """Run the whole study and return its results (nothing is written but ``work_dir``).
 
     ``evidence_runs``: also the core-level runs on test17run (release experiment, undeclared
-    effects; ~40 s)."""
+    effects; ~40 s) and the tilt closure at stops on the real logs and simulated drives
+    (:mod:`~slip_estimator.validation.stop_tilt`, on ``jobs`` workers)."""
     t_start = time.perf_counter()
     own_tmp = work_dir is None
     work = Path(tempfile.mkdtemp(prefix='slip_validate_')) if own_tmp else Path(work_dir)
@@ -287,7 +290,19 @@ def run_study(data_dir: Path = DEFAULT_DATA_DIR, work_dir: Path | None = None,
     try:
         inputs, measured, extra = prepare(Path(data_dir), work, logs, injected, progress)
         results = run_cases(case_tasks(configs, inputs, extra, measured, work), jobs, progress)
-        evidence = collect_evidence(inputs, measured, results, evidence_runs, progress)
+        if not evidence_runs:
+            evidence = collect_evidence(inputs, measured, results, False, progress)
+        else:  # the stop closures' drives run beside the serial core-level evidence runs
+            import multiprocessing as mp
+            say(progress, 'tilt closure at stops (core: real logs, simulated drives)')
+            with ProcessPoolExecutor(max(1, jobs - 1), mp_context=mp.get_context('spawn')
+                                     ) as pool:
+                stop_tilt = submit_closures(pool, {
+                    name: (Path(data_dir) / f'{name}.mat',
+                           inp.params.replace(**cfg_d(measured, name)))
+                    for name, inp in inputs.items()})
+                evidence = collect_evidence(inputs, measured, results, True, progress)
+                evidence['stop_tilt'] = stop_tilt()
         return Study(list(configs), list(inputs), measured, results, evidence,
                      time.perf_counter() - t_start, jobs)
     finally:

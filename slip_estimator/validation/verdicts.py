@@ -157,3 +157,21 @@ def lag_drift_text(study: Study) -> str:
             + '. The node measures the lag online '
             '(`core.timing.WheelTimingMonitor`, yaw rate vs wheel differential over the last '
             '30 s of turning) and names an undeclared one in `/diagnostics`.')
+
+
+SIM_REAL_FACTOR = 2.0
+"""A simulated statistic within this factor of the real one, either way, reproduces it: the
+spread between the two real logs (docs/sim-vs-real.md) and the sim-vs-real ratios the
+simulator's measured grade was accepted on (0.5-2) are of this size."""
+
+
+def sim_real_verdict(sim: float, real: float) -> str:
+    """'reproduced' within :data:`SIM_REAL_FACTOR` of ``real``, else which side differs and by
+    how much; 'n/a' without both figures."""
+    if not (math.isfinite(sim) and math.isfinite(real)) or real <= 0.0 or sim <= 0.0:
+        return 'n/a'
+    ratio = sim / real
+    if 1.0 / SIM_REAL_FACTOR <= ratio <= SIM_REAL_FACTOR:
+        return f'reproduced (within x{SIM_REAL_FACTOR:g})'
+    return (f'simulator {"larger" if ratio > 1.0 else "smaller"} by '
+            f'x{max(ratio, 1.0 / ratio):.1f}: differs')

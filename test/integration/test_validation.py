@@ -82,6 +82,10 @@ def test_core_level_evidence(study) -> None:
     for r in rows:
         assert _finite(r['balanced_accuracy']) and _finite(r['v_rmse_plain'])
     assert any('wheel radius' in t for t in rows[-1]['suspects'])
+    stops = st.evidence['stop_tilt']  # test17run's one stop after its drive, and the sims'
+    assert len(stops['real test17run']) == 1 and stops['real test17run'][0]['drive_s'] > 40.0
+    assert all(len(v) and all(math.isfinite(s['first_pitch_deg']) for s in v)
+               for v in stops.values())
 
 
 def test_imu_speed_scatter_is_a_walk_above_the_references_floor(study) -> None:
@@ -127,7 +131,7 @@ def test_report_and_figures(study) -> None:
     for head in ('### test17run (RTK truth), plain log',
                  '### test17run with injected wheel slip (RTK truth)',
                  '## Which metric rests on which truth', '## Evidence per effect',
-                 '## Undeclared effects'):
+                 '## Undeclared effects', '## Tilt closure at stops: sim vs real'):
         assert head in text
     assert 'no slip model passes (`validation.imu_floor`)' in text
     # Slip table: header + separator + one row per configuration, same column count.
