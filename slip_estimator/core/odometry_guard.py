@@ -18,10 +18,17 @@ followed the wheels.
 The INS's speed error is the IMU's own measured error over a measuring span: the slip model's
 learned spread of the free residual's change (:attr:`SlipModel.spread_var`) at its longest
 scale, or its 1-s spread carried to that scale as a random walk, if larger (it is learned
-sooner). One exception keeps a coarse INS: a slip measured from rest (on a stop's zero
-velocity, no change chained to it since) that puts the body's speed beyond
-``slip_change_sigma`` of that error from the rim speed: wheels spinning on a body that stayed
-stuck, which the free INS sees from a ZUPT far better than over a running measuring span.
+sooner); with the held level's chain variance added (the changes the INS alone read since
+the last anchor, :meth:`~slip_estimator.core.slip_model.chain.SlipChain.guard_var_mps2`): a
+hold chained on several changes is placed no better than their summed spread, unless it puts
+the body beyond ``RESOLVED_SIGMAS`` of the INS's spread from the rim speed. A change where the
+rim stepped and the body did not follow (the wheels spun up or gripped again) is the wheels',
+not the INS's, and adds nothing: a rim spinning up at a steady IMU is not published as the
+fallback unless the INS alone is coarse. One exception keeps a coarse INS: a slip measured
+from rest (on a stop's zero velocity, no change chained to it since) that puts the body's
+speed beyond ``slip_change_sigma`` of that error from the rim speed: wheels spinning on a body
+that stayed stuck, which the free INS sees from a ZUPT far better than over a running
+measuring span.
 
 Not resolved here (measured): the first tens of seconds after an in-motion start on a
 consumer IMU, before the spread is learned (its prior is the wheel aid's noise): the INS's

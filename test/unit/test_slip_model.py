@@ -427,6 +427,78 @@ def test_the_chain_holds_a_measurement_as_baseline_false_alarm_or_new_slip():
     assert chain.held_speed_var_mps2(0.5, 0.01) == pytest.approx(chain.chain_var)
 
 
+def test_the_guard_counts_the_chain_the_ins_alone_read_unless_the_hold_is_resolved_from_the_rim():
+    """Closed form at 0.5 m/s, an INS spread of 0.05 m/s over a measuring span: a hold more
+    than ``RESOLVED_SIGMAS`` of it (0.175 m/s) from the rim is resolved and the guard judges
+    the INS alone; nearer, a change the INS alone read (0.3 -> 0.05 from a ground measured at
+    rest, 0.05 m/s spread) adds its variance, a false alarm that confirms the hold and one
+    whose rim stepped while the body did not follow (``rim_spun``) add none. On an assumed
+    chain (a start in motion) the larger of the INS's and the chain's."""
+    from slip_estimator.core.slip_model.chain import SlipChain
+    ins = 0.05 ** 2
+
+    def from_ground(measured, rim_spun=False):
+        chain = SlipChain(Params())
+        chain.settle(0.3, None, 0.5, 1e-4, 0.05, True, False, False)  # the ground, from rest
+        held = chain.settle(measured, 0.3, 0.5, 0.0025, 0.05, False, False, False,
+                            rim_spun=rim_spun)
+        return chain, held
+
+    assert SlipChain(Params()).guard_var_mps2(ins, None, 0.5) == ins  # nothing chained
+    chain, held = from_ground(0.05)
+    assert held == 0.05 and chain.ins_chain_var == pytest.approx(0.0025)
+    assert chain.guard_var_mps2(ins, held, 0.5) == pytest.approx(ins + 0.0025)  # 0.025 m/s
+    # A false alarm (the INS confirms the hold) grows the chain, not what the guard counts.
+    assert chain.settle(0.06, 0.05, 0.5, 0.0025, 0.05, False, False, False) == 0.05
+    assert chain.chain_var == pytest.approx(0.005) and chain.ins_chain_var == pytest.approx(
+        0.0025)
+    chain, held = from_ground(0.05, rim_spun=True)
+    assert chain.chain_var == pytest.approx(0.0025) and chain.ins_chain_var == 0.0
+    assert chain.guard_var_mps2(ins, held, 0.5) == ins
+    chain, held = from_ground(0.6)
+    assert held == 0.6 and chain.guard_var_mps2(ins, held, 0.5) == ins  # 0.3 m/s: resolved
+    chain = SlipChain(Params())
+    chain.settle(0.0, None, 0.5, 0.01, 0.05, False, True, False)  # zero slip, assumed
+    assert chain.settle(0.5, 0.0, 0.5, 0.01, 0.05, False, False, False) == 0.5
+    assert chain.assumed and chain.guard_var_mps2(ins, 0.5, 0.5) == ins  # 0.25 m/s: resolved
+    assert chain.guard_var_mps2(ins, None, 0.5) == pytest.approx(0.01)  # the larger
+
+
+@pytest.mark.parametrize('rim_spins', [True, False])
+def test_a_rim_spinning_up_at_a_steady_imu_is_not_published_as_the_fallback(rim_spins):
+    """Wheels spinning up x2.5 at an unchanged body speed (0.5 -> 1.25 m/s at the rim, as
+    test17run's injected window): the rim's step is beyond what the INS misses and the body did
+    not follow, so the chain's change is the wheels' and the odometry guard judges the INS by
+    its own spread: not coarse, no fallback to the spinning rim. The same slip reached by the
+    body slowing at a held rim (sand) is the INS's word alone and counts in the guard's chain."""
+    from slip_estimator.core.odometry_guard import decide, ins_speed_error_var
+    from slip_estimator.core.slip_model.chain import RESOLVED_SIGMAS
+    from slip_estimator.core.types import SlipEstimate
+    t, start = drive()
+    window = smooth_step(t, 25.0, 0.3) - smooth_step(t, 45.0, 0.3)
+    if rim_spins:
+        v = 0.5 * start
+        w = v / (1.0 - 0.05) * (1.0 + 1.5 * window)
+    else:
+        w = 0.5 / (1.0 - 0.05) * start
+        v = w * (1.0 - 0.05 - 0.55 * window)
+    k = int(40.0 / DT_S)  # to inside the window
+    model, _ = run(w[:k], v[:k], walk_mps_rts=0.02)
+    chain = model.chain
+    assert model.slip_hold is not None and model.slip_hold > 0.4
+    assert chain.chain_var > 0.0
+    ins = ins_speed_error_var(model.spread_var, SCALES_S)
+    guard = chain.guard_var_mps2(ins, model.slip_hold, float(w[k - 1]))
+    if rim_spins:
+        assert chain.ins_chain_var == 0.0 and guard == ins
+        rim = float(w[k - 1])
+        est = SlipEstimate(0, model.slip_hold, 0.1, 3, speed_ratio(model.slip_hold) * rim, 0.1,
+                           rim)
+        assert not decide(est, guard, False, RESOLVED_SIGMAS).fallback
+    else:
+        assert chain.ins_chain_var == pytest.approx(chain.chain_var)
+
+
 def test_a_ratchet_of_drift_sized_body_side_readings_does_not_climb_classes():
     """Closed form at 0.5 m/s, a 2.5-s INS spread of 0.05 m/s, baseline 0.06: a body-side
     change 0.06 -> 0.30 (0.12 m/s) beats one scale's drift (2 x 0.05) and is held. A second

@@ -59,8 +59,8 @@ from slip_estimator.core.params import Params
 from slip_estimator.core.slip_model.rim_memory import RimMemory
 from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
 from slip_estimator.core.slip import speed_ratio
-from slip_estimator.core.slip_model.chain import (COARSE_CONTINUITY_FRACTION, SlipChain,
-                                                  coarse_ins)
+from slip_estimator.core.slip_model.chain import (COARSE_CONTINUITY_FRACTION, RESOLVED_SIGMAS,
+                                                  SlipChain, coarse_ins)
 from slip_estimator.core.slip_model.measurement import SlipMeasurement
 from slip_estimator.core.slip_model.step_test import SCALES_S, StepTest
 from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
@@ -226,7 +226,22 @@ class SlipModel:
         return self.chain.settle(
             measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
             from_rest, unmeasured, not from_rest and ra.implausible(measured), ra.pitch_rad,
-            self._pitch_std_rad, body_span_s, SCALES_S[-1], self._speed_var, body_window_s)
+            self._pitch_std_rad, body_span_s, SCALES_S[-1], self._speed_var, body_window_s,
+            anchor is not None and not anchor.body and self._rim_spun(anchor, measured, w))
+
+    def _rim_spun(self, anchor: Anchor, measured: float, w: float) -> bool:
+        """A wheel-side change from ``anchor`` read as ``measured`` at rim speed ``w`` is the
+        wheels': the rim stepped by more than the INS misses over its shortest scale
+        (``RESOLVED_SIGMAS`` of the 1-s spread) and the body's speed change differs from that
+        step by as much (the wheels spun up or gripped again; the INS resolved it). A rim held
+        steady while the slip moved is not: there the INS alone read the change."""
+        g_before = speed_ratio(self._previous) if self._previous is not None else 0.0
+        if g_before <= 0.0:
+            return False
+        resolved_mps = RESOLVED_SIGMAS * math.sqrt(self.spread_var[0])
+        rim_step = w - anchor.z_mps / g_before
+        body_step = speed_ratio(measured) * w - anchor.z_mps
+        return abs(rim_step) > resolved_mps and abs(rim_step - body_step) > resolved_mps
 
     def held_speed_var_mps2(self, w: float) -> float:
         """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided

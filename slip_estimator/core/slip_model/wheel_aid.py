@@ -117,7 +117,9 @@ class WheelAid:
 
     def odometry_decision(self, est: SlipEstimate) -> GuardDecision:
         """Whether the published odometry falls back to wheels + gyro at this sample
-        (:func:`~slip_estimator.core.odometry_guard.decide` on the slip model's INS spread; a
+        (:func:`~slip_estimator.core.odometry_guard.decide` on the slip model's INS spread and
+        the held level's chain variance (:meth:`SlipChain.guard_var_mps2`: a hold chained on
+        changes a consumer IMU alone measured is no better placed than that chain); a
         hold measured from rest with no change chained to it is anchored, and only on such a
         hold does the fallback carry a slip: the ground's as a start resolved it
         (``SlipChain.ground``: placed within ``ASSUMED_SLIP_STD``, better than assuming zero
@@ -133,7 +135,8 @@ class WheelAid:
         chain = model.chain
         anchored = not chain.assumed and chain.chain_var == 0.0
         ground = chain.ground if self.held_slip is not None else None
-        return decide(est, ins_speed_error_var(model.spread_var, SCALES_S), anchored,
+        return decide(est, chain.guard_var_mps2(ins_speed_error_var(model.spread_var, SCALES_S),
+                                                self.held_slip, est.wheel_speed_mps), anchored,
                       self._resolving_sigmas, ground
                       if anchored and abs(ground or 0.0) <= ASSUMED_SLIP_STD else None,
                       self._rim_steady)
