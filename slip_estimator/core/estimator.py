@@ -19,7 +19,8 @@ from slip_estimator.core.alignment import (AlignmentCollector, AlignmentStart, f
 from slip_estimator.core.detectors import ImuRate, StationaryDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
-from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint, WheelQueue
+from slip_estimator.core.history import (ForwardSpeedHistory, HistoryPoint, WheelQueue,
+                                         runaway_scale)
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.odometry_guard import OdometryGuard
 from slip_estimator.core.params import Params
@@ -289,7 +290,10 @@ class SlipEstimator:
                                         self.forward.covariance(d.var_mps2))
         self.history.apply(correction, aid=not d.repair)
         if taken_back is not None:  # checked against the INS TAKE_BACK_CHECK_S on
-            self.history.taken_back(taken_back, correction)
+            m = self.slip_model
+            self.history.taken_back(runaway_scale(m.spread_var[0], self.filter.tilt_std_rad(),
+                                                  self.filter.g_mps2, m.aid_noise_var),
+                                    taken_back, correction)
 
     def _aid_update(self, z_mps: float, v_hist_mps: float, var_mps2: float,
                     excluded: bool = True) -> None:
