@@ -19,8 +19,7 @@ from slip_estimator.core.alignment import (AlignmentCollector, AlignmentStart, f
 from slip_estimator.core.detectors import ImuRate, StationaryDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
-from slip_estimator.core.history import (ForwardSpeedHistory, HistoryPoint, WheelQueue,
-                                         runaway_scale)
+from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint, WheelQueue
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.odometry_guard import OdometryGuard
 from slip_estimator.core.params import Params
@@ -30,6 +29,7 @@ from slip_estimator.core.slip_model.model import CHANGE_LOOKBACK_S
 from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.state import NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor
+from slip_estimator.core.take_back import runaway_scale
 from slip_estimator.core.timing import WheelTimingMonitor
 from slip_estimator.core.types import (Health, ImuSample, OdometryEstimate, SlipEstimate,
                                        WheelSample, wheel_speeds)

@@ -11,8 +11,7 @@ import pytest
 from slip_estimator.core.detectors import ImuRate, ImuWindow
 from slip_estimator.core.filter import ErrorStateFilter, vibration_psd
 from slip_estimator.core.frames import rpy_to_dcm
-from slip_estimator.core.history import (RUNAWAY_SIGMA, TAKE_BACK_CHECK_S, Correction,
-                                         ForwardSpeedHistory, RunawayScale, runaway_scale)
+from slip_estimator.core.history import Correction, ForwardSpeedHistory
 from slip_estimator.core.kalman import chi2_threshold
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.outputs import (RESOLVED_P, slip_before_alignment, slip_estimate,
@@ -33,6 +32,8 @@ from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
+from slip_estimator.core.take_back import (RUNAWAY_SIGMA, TAKE_BACK_CHECK_S, RunawayScale,
+                                           runaway_scale)
 from slip_estimator.core.types import WheelSample
 from slip_estimator.core.slip_model.wheel_aid import WheelAid
 
