@@ -19,59 +19,22 @@ test fires, 1-2.5 s later, and the filter explains that pull as tilt and acceler
 that acceleration error (0.02-0.1 m/s^2) makes the free INS measure the change short (patch
 entries read 30-40 % low). The history keeps the aid's recent error-state corrections
 (:meth:`ForwardSpeedHistory.aid_taught_since`) so that the estimator can take back the tilt
-and bias parts made since a change began.
-
-Verifying a take-back: on an IMU whose tilt wanders (the simulated Pathfinder's vibration),
-what the aid taught over the seconds before a false body-side alarm was its levelling of the
-INS's own excursion; taken back, the INS runs away at the rate removed (0.26-0.54 m/s in the
-next second after 0.30-0.46 m/s^2 removed on ground that never slips, the rim steady) and a
-false slip is held. A true change leaves the INS level after the take-back. The history keeps
-the last take-back for :meth:`ForwardSpeedHistory.take_back_refuted`, which returns the
-correction that restores it (its tilt and bias, and the speed lost meanwhile).
+and bias parts made since a change began; the last take-back is checked after it
+(:mod:`slip_estimator.core.take_back`).
 """
 from __future__ import annotations
 
-import math
 from collections import deque
 from collections.abc import Iterator
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
-from slip_estimator.core.state import ATT, BA, N_ERR, VEL, NavState
+from slip_estimator.core.state import ATT, BA, N_ERR, NavState
+from slip_estimator.core.take_back import RunawayScale, TakeBackCheck
 from slip_estimator.core.types import WheelSample
 
 _NS = 1_000_000_000
-TAKE_BACK_CHECK_S = 1.0
-"""How long after a take-back the INS is watched (see
-:meth:`ForwardSpeedHistory.take_back_refuted`)."""
-_RUNAWAY_MIN_MPS2 = 0.2
-"""A take-back is checked when it removed more along-track acceleration than this: the false
-ones on simulated Pathfinder ground that never slips removed 0.30-0.46 m/s^2; on tactical
-`patches` and `rough` drives none of 62 removed 0.1; at 0.1 an injected body-side change on
-the real test17run was restored (its false alarms 2.6 -> 18.7 %)."""
-_STEADY_RIM_MPS = 0.02
-"""The rim speed must stay within this over the check (at a body-side change it does; where the
-rim moves, as on the 50-Hz robot's patches (0.07-0.13 m/s), the INS may follow the body)."""
-_RUNAWAY_RATIO = (0.7, 1.3)
-"""The INS's speed change over the check, relative to the acceleration removed times the
-check's span, that marks it as running away at that rate (the false take-backs: 0.82-1.17)."""
-
-
-@dataclass
-class _TakeBack:
-    """A take-back waiting for its check: when, its tilt and bias error state, the along-track
-    acceleration it removed, the forward speed then, and the rim speed at the first wheel
-    sample after it."""
-
-    t_ns: int
-    dx: np.ndarray
-    da_fwd_mps2: float
-    v_fwd_mps: float
-    rim_mps: float | None = None
-
-
 class HistoryPoint(NamedTuple):
     """The history at one instant (linearly interpolated)."""
 
@@ -108,7 +71,7 @@ class ForwardSpeedHistory:
         self._shift_mps = 0.0  # sum of the forward-speed corrections so far
         self._aid_v_mps, self._aid_a_mps2 = 0.0, 0.0
         self._taught: deque = deque()  # (stamp ns, dx) of the wheel aid's corrections
-        self._taken_back: _TakeBack | None = None  # the last take-back, until checked
+        self._take_back = TakeBackCheck()  # the last take-back, until checked
 
     def __len__(self) -> int:
         return len(self._rows)
@@ -117,7 +80,7 @@ class ForwardSpeedHistory:
         """Forget the recorded past and the aid's accumulated effect (after a recovery)."""
         self._rows.clear()
         self._taught.clear()
-        self._taken_back = None
+        self._take_back.clear()
         self._aid_v_mps, self._aid_a_mps2 = 0.0, 0.0
 
     def newest(self) -> tuple[int, HistoryPoint]:
@@ -153,42 +116,20 @@ class ForwardSpeedHistory:
             dx[BA] += d[BA]
         return dx
 
-    def taken_back(self, *corrections: Correction) -> None:
-        """Remember a take-back (its corrections: the take-back and the anchor after it; their
-        tilt and bias parts) for :meth:`take_back_refuted`."""
-        dx = np.zeros(N_ERR)
-        for c in corrections:
-            dx[ATT] += c.dx[ATT]
-            dx[BA] += c.dx[BA]
+    def taken_back(self, scale: RunawayScale, *corrections: Correction) -> None:
+        """Remember a take-back (its corrections: the take-back and the anchor after it) for
+        :meth:`take_back_refuted`, checked against ``scale`` (:meth:`TakeBackCheck.taken_back`)."""
         t_ns, now = self.newest()
-        self._taken_back = _TakeBack(t_ns, dx, sum(c.da_fwd_mps2 for c in corrections),
-                                     now.v_fwd_mps)
+        self._take_back.taken_back(t_ns, now.v_fwd_mps, scale, corrections)
 
     def take_back_refuted(self, rim_mps: float, forward_n: np.ndarray) -> np.ndarray | None:
-        """``TAKE_BACK_CHECK_S`` after a take-back (``rim_mps``: the rim speed now; ``forward_n``:
-        the body's forward axis in navigation axes): the error state that restores it (the
-        tilt and bias taken back, and the forward speed the INS lost since) if the INS ran
-        away at the rate removed while the rim stayed steady (module doc), else None."""
-        tb = self._taken_back
-        if tb is None:
+        """The error state that restores the last take-back, or None
+        (:meth:`TakeBackCheck.refuted`; ``rim_mps``: the rim speed now, ``forward_n``: the
+        body's forward axis in navigation axes)."""
+        if not self._take_back.pending:
             return None
-        if tb.rim_mps is None:
-            tb.rim_mps = rim_mps
         t_ns, now = self.newest()
-        if t_ns - tb.t_ns < int(TAKE_BACK_CHECK_S * _NS):
-            return None
-        self._taken_back = None
-        removed_mps = tb.da_fwd_mps2 * TAKE_BACK_CHECK_S
-        dv_mps = now.v_fwd_mps - tb.v_fwd_mps
-        lo, hi = _RUNAWAY_RATIO
-        if abs(tb.da_fwd_mps2) <= _RUNAWAY_MIN_MPS2 \
-                or abs(rim_mps - tb.rim_mps) >= _STEADY_RIM_MPS \
-                or not lo * abs(removed_mps) <= dv_mps * math.copysign(1.0, removed_mps) \
-                <= hi * abs(removed_mps):
-            return None
-        dx = -tb.dx
-        dx[VEL] = dv_mps * forward_n
-        return dx
+        return self._take_back.refuted(t_ns, now.v_fwd_mps, rim_mps, forward_n)
 
     def record(self, stamp_ns: int, state: NavState, w_b: list[float], dt_s: float) -> None:
         """Append the state at ``stamp_ns`` (gyro rate ``w_b``, IMU step ``dt_s``)."""

@@ -23,6 +23,7 @@ from slip_estimator.core.params import Params
 from slip_estimator.core.slip_model.aid_decision import AidDecision
 from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.slip_model.wheel_aid import WheelAid
+from slip_estimator.core.take_back import runaway_scale
 from slip_estimator.core.supervisor import Supervisor
 from slip_estimator.core.types import SlipEstimate, WheelSample
 from slip_estimator.core.updater import Updater
@@ -117,7 +118,10 @@ class WheelUpdate:
                                         self.forward.covariance(d.var_mps2))
         self.history.apply(correction, aid=not d.repair)
         if taken_back is not None:  # checked against the INS TAKE_BACK_CHECK_S on
-            self.history.taken_back(taken_back, correction)
+            m = self.wheel_aid.slip_model
+            self.history.taken_back(runaway_scale(m.spread_var[0], self.filter.tilt_std_rad(),
+                                                  self.filter.g_mps2, m.aid_noise_var),
+                                    taken_back, correction)
 
     def _aid_update(self, z_mps: float, v_hist_mps: float, var_mps2: float,
                     excluded: bool = True) -> None:

@@ -28,9 +28,12 @@ from slip_estimator.core.planet import EARTH, gravity_n
 from slip_estimator.core.slip_model.aided_record import ANCHOR_S, AidedRecord
 from slip_estimator.core.slip_model.rim_memory import MEMORY_S, RimMemory, rim_steady
 from slip_estimator.core.slip import p_beyond_medium_bound
+from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
 from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState
 from slip_estimator.core.supervisor import GapAction, Supervisor, check_filter
+from slip_estimator.core.take_back import (RUNAWAY_SIGMA, TAKE_BACK_CHECK_S, RunawayScale,
+                                           runaway_scale)
 from slip_estimator.core.types import WheelSample
 from slip_estimator.core.slip_model.wheel_aid import WheelAid
 
@@ -791,14 +794,19 @@ def test_the_gyro_bias_prior_grows_with_the_measured_grade():
     assert quiet.initial_gyro_bias_std == default.initial_gyro_bias_std
 
 
-def _taken_back_then(v_after_mps, rim_after_mps, removed_mps2=-0.3):
-    """A take-back that removed ``removed_mps2`` (pitch and bias parts) at 1.0 m/s north, then
-    the INS's forward speed 1 s later; returns the restoring error state or None."""
+_SCALE = RunawayScale(0.0625, 0.02)  # checked beyond 4 x 0.0625 = 0.25 m/s^2 removed
+
+
+def _taken_back_then(v_after_mps, rim_after_mps, removed_mps2=-0.3, scale=_SCALE):
+    """A take-back that removed ``removed_mps2`` (pitch and bias parts) at 1.0 m/s north,
+    checked against ``scale``, then the INS's forward speed 1 s later; returns the restoring
+    error state or None."""
     h = ForwardSpeedHistory((0.0, 0.0, 0.0))
     h.record(0, level_state(v_eb_n=(1.0, 0.0, 0.0)), [0.0, 0.0, 0.0], 0.01)
     dx = np.zeros(N_ERR)
     dx[ATT], dx[BA] = (0.0, 0.02, 0.0), (0.01, 0.0, 0.0)
-    h.taken_back(Correction(0.0, removed_mps2, dx), Correction(-0.1, 0.0, np.ones(N_ERR)))
+    h.taken_back(scale, Correction(0.0, removed_mps2, dx),
+                 Correction(-0.1, 0.0, np.ones(N_ERR)))
     assert h.take_back_refuted(0.8, np.array([1.0, 0.0, 0.0])) is None  # rim 0.8 noted
     h.record(500_000_000, level_state(v_eb_n=(1.0, 0.0, 0.0)), [0.0, 0.0, 0.0], 0.01)
     assert h.take_back_refuted(0.8, np.array([1.0, 0.0, 0.0])) is None  # not yet 1 s on
@@ -820,5 +828,41 @@ def test_a_take_back_the_ins_runs_away_from_is_restored():
     # rim moved (the body may have followed it): kept
     for v_after, rim_after in ((1.0, 0.8), (0.5, 0.8), (1.3, 0.8), (0.7, 0.85)):
         assert _taken_back_then(v_after, rim_after) is None
-    # a take-back too small to tell from the aid's routine levelling is not checked
-    assert _taken_back_then(0.95, 0.8, removed_mps2=-0.05) is None
+
+
+def test_the_take_back_check_scales_with_the_measured_noise():
+    # the scale: the coarser of the 1-s spread per second (0.05) and g times the tilt 1-sigma
+    # (0.004 x 10 = 0.04); the rim tolerance is the aid's measured innovation scatter
+    assert runaway_scale(0.05 ** 2, 0.004, 10.0, 0.03 ** 2) == pytest.approx((0.05, 0.03))
+    assert runaway_scale(0.01 ** 2, 0.006, 10.0, 0.0) == pytest.approx((0.06, 0.0))
+    assert TAKE_BACK_CHECK_S == SCALES_S[0]
+    # removed exactly RUNAWAY_SIGMA (4) x 0.0625 = 0.25 m/s^2 is checked, and restored when
+    # the INS ran away by that; just under it is not checked at all
+    assert _taken_back_then(0.75, 0.8, removed_mps2=-0.25) is not None
+    assert _taken_back_then(0.75, 0.8, removed_mps2=-0.2499) is None
+    # the same take-back on an IMU twice as coarse is within its routine levelling
+    coarse = RunawayScale(0.125, 0.02)
+    assert _taken_back_then(0.7, 0.8, scale=coarse) is None
+    assert _taken_back_then(0.5, 0.8, removed_mps2=-0.5, scale=coarse) is not None
+    # the rim: a move just under the measured tolerance is steady, one at it is not
+    assert _taken_back_then(0.7, 0.8 - 0.0199) is not None
+    assert _taken_back_then(0.7, 0.8 - 0.0201) is None
+    assert _taken_back_then(0.7, 0.8 - 0.0201, scale=RunawayScale(0.0625, 0.05)) is not None
+
+
+def test_a_take_back_at_a_patch_the_body_keeps_slowing_through_is_kept():
+    # The traced firing on a true change (sim `measured` seed 3, 427.8 s): a patch of slip 0.6
+    # entered over a 3.0-s ramp; the alarm fired 1.7 s in and took back 0.226 m/s^2; over the
+    # next second the body kept slowing (0.157 m/s) and the INS with it (0.241 m/s, 1.07 x
+    # the rate removed) at a steady rim. The take-back was right (restoring it moved the
+    # speed error +0.07 -> +0.31 m/s). That IMU's 1-s spread was 0.060 m/s and g times its
+    # tilt 1-sigma 0.049 m/s^2: 0.226 is under 4 x 0.060, not checked, where the constant
+    # 0.2 m/s^2 restored it.
+    measured = runaway_scale(0.060 ** 2, 0.049 / 9.81, 9.81, 0.028 ** 2)
+    assert _taken_back_then(1.0 - 0.241, 0.8, removed_mps2=-0.226, scale=measured) is None
+    assert _taken_back_then(1.0 - 0.241, 0.8, removed_mps2=-0.226,
+                            scale=RunawayScale(0.2 / RUNAWAY_SIGMA, 0.02)) is not None
+    # the false take-backs on ground that never slips were 4.4-9.5 times that IMU's scale
+    # (seed 2 at 469.5 s: 0.222 m/s^2 removed, spread 0.051, g tilt 0.052): still restored
+    noslip = runaway_scale(0.051 ** 2, 0.052 / 9.81, 9.81, 0.073 ** 2)
+    assert _taken_back_then(1.0 - 0.191, 0.8, removed_mps2=-0.222, scale=noslip) is not None
