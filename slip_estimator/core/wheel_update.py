@@ -23,8 +23,8 @@ from slip_estimator.core.params import Params
 from slip_estimator.core.slip_model.aid_decision import AidDecision
 from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.slip_model.wheel_aid import WheelAid
-from slip_estimator.core.take_back import runaway_scale
 from slip_estimator.core.supervisor import Supervisor
+from slip_estimator.core.take_back import runaway_scale
 from slip_estimator.core.types import SlipEstimate, WheelSample
 from slip_estimator.core.updater import Updater
 
