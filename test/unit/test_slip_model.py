@@ -712,3 +712,46 @@ def test_a_body_side_alarm_on_a_coarse_ins_keeps_the_aided_speeds_continuity():
     for d in alarms:
         assert d.take_back_since_ns is None
         assert d.z_mps == pytest.approx(0.95, abs=0.05)
+
+
+def test_a_start_after_a_rest_left_accelerating_holds_the_ground_on_the_side_it_hides():
+    """At 0.5 m/s with an INS spread of 0.05 m/s over a measuring span and the ground measured
+    at 0.05: a start reading 0.30 after a rest whose updates left the INS at -0.015 m/s (slow:
+    the start reads high) departs from the ground by 0.125 m/s, beyond that spread, on the side
+    the offset hides: the ground is held and stays the baseline. The same reading after a rest
+    left fast (+0.015 m/s: the slip is higher still) or settled is the new ground; so is a
+    departure within the spread (0.12: 0.035 m/s)."""
+    from slip_estimator.core.slip_model.chain import SlipChain
+
+    def start(measured, offset_mps):
+        chain = SlipChain(Params())
+        chain.settle(0.05, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+        return chain.settle(measured, None, 0.5, 0.05 ** 2, 0.05, True, False, False,
+                            rest_offset_mps=offset_mps), chain.baseline
+    assert start(0.30, -0.015) == (0.05, 0.05)
+    assert start(0.30, 0.015) == (0.30, 0.30)
+    assert start(0.30, 0.0) == (0.30, 0.30)
+    assert start(0.12, -0.015) == (0.12, 0.12)
+    assert start(-0.20, 0.015) == (0.05, 0.05)  # fast: read low, the ground is higher
+
+
+@pytest.mark.parametrize('rest_v_mps, held', [(-0.02, 0.05), (-0.005, 0.3), (0.0, 0.3)])
+def test_the_rest_offset_its_zero_velocity_updates_leave_is_measured(rest_v_mps, held):
+    """A drive measures the ground at 0.05 from rest, stops for 2 s, and starts again reading
+    0.3 (0.2 m/s from the ground at 0.8 m/s). Where the INS speed stayed at -0.02 m/s under
+    the rest's zero-speed aid (beyond the ZUPT's 0.01 m/s 1-sigma) the start is the INS's and
+    the ground is held; an offset within the ZUPT's noise, or none, leaves the reading."""
+    from slip_estimator.core.slip_model.stop_clock import StopClock
+    model = SlipModel(Params())
+    k = 0
+    for v, w, n in ((0.76, 0.8, 40), (rest_v_mps, 0.0, 20), (0.56, 0.8, 40)):
+        for _ in range(n):
+            model.step(int(k * 1e8), w, v, v, w > 0.0, False)
+            k += 1
+        if w == 0.0:
+            assert model.mode is Mode.REST
+    assert model.slip_hold == pytest.approx(held)
+    clock = StopClock(0.02)
+    for j in range(2):
+        clock.rest(int(j * 1e8), -0.02)
+    assert clock.rest_offset_mps(0.01) == 0.0  # fewer than three samples: nothing measured

@@ -25,7 +25,11 @@ the next until a stop or a return to the ground measured after the last start:
   drift of their whole span: back to the hold before them (``RUN_GAP_S``);
 * **ground.** A start from rest places the ground's slip to the filter's speed sigma at its
   end; only within ``ASSUMED_SLIP_STD`` of the rim speed is that better than assuming zero
-  slip, and only such a baseline is the resolved ``ground`` (the odometry guard carries it);
+  slip, and only such a baseline is the resolved ``ground`` (the odometry guard carries it).
+  Not where the rest's zero-velocity updates left the INS speed off zero
+  (:meth:`~.stop_clock.StopClock.rest_offset_mps`: an acceleration error they had not removed,
+  which the start's free INS integrates) and the reading departs from the baseline beyond the
+  INS spread on the side that offset pushes it: the baseline is held;
 * **assumed.** After a start in motion nothing measured the ground: a slip the INS could not
   place is assumed (zero, the wheels' speed) and carries ``ASSUMED_SLIP_STD``; an INS too
   coarse to place a slip within the low class takes zero as its baseline until a stop.
@@ -130,7 +134,7 @@ class SlipChain:
                pitch_std_rad: float = 0.0, body_span_s: float | None = None,
                spread_scale_s: float = 1.0, start_speed_var: float = 0.0,
                body_window_s: tuple[float, float] | None = None,
-               rim_spun: bool = False) -> float:
+               rim_spun: bool = False, rest_offset_mps: float = 0.0) -> float:
         """The slip to hold after a measurement of ``measured`` at rim speed ``w`` and pitch
         ``pitch_rad`` (1-sigma ``pitch_std_rad``).
 
@@ -149,6 +153,11 @@ class SlipChain:
         body_window_s : for any body-side change, (its continuity anchor, its end), s.
         rim_spun : the rim stepped beyond what the INS misses and the body did not follow
             (``SlipModel._rim_spun``): a new level held adds nothing to ``ins_chain_var``.
+        rest_offset_mps : for a start from rest, the forward speed the rest's zero-velocity
+            updates left (:meth:`~.stop_clock.StopClock.rest_offset_mps`, 0 where none): the
+            start's free INS integrates that acceleration, and its speed errs to the offset's
+            side by an amount nothing measured; the baseline before it, where it lies on the
+            side the error hides, is held.
         """
         p = self.params
         if unmeasured:
@@ -173,6 +182,20 @@ class SlipChain:
             self.doubted = body_window_s is not None and measured >= -run_ahead.MAX_SLIP
             measured = baseline if baseline is not None else 0.0
             self.assumed = self.assumed or baseline is None
+        if from_rest and self.baseline is not None and \
+                (self.baseline - measured) * rest_offset_mps * w > 0.0 and \
+                abs(measured - self.baseline) * abs(w) > math.sqrt(spread_var):
+            # The stop's first zero-velocity update put the held slip's speed error into tilt
+            # and the rest was too short for the updates to take it out again: the start's
+            # free INS runs off with the rest's offset (rough seed 4 at 253 s: the rest's speed
+            # stayed at -0.014 m/s under its updates, the start read 0.29 on ground of 0.07,
+            # with a filter speed sigma of 0.018 m/s). The slip lies beyond the reading on the
+            # side the offset hides; where the ground the last start measured lies there and
+            # the reading departs from it by more than the INS spreads over a measuring span,
+            # that ground is the better reading (on the other side, or within the spread,
+            # the reading itself: rough seeds 2 and 6, 0.02-0.03 from their truth).
+            self.chain_var, self.doubted = 0.0, False
+            return self.baseline
         if from_rest:
             # An INS the filter knows too coarse to place the ground's slip within the low
             # class (a vibrating 30-Hz consumer IMU read s = -0.34 after a stop, truth 0)

@@ -21,7 +21,9 @@ a step beyond it is a slip change whichever side it shows on.
 
 Modes (:class:`Mode`):
 
-* ``REST``: not moving. The ZUPT anchors the velocity; the next start is measured from it;
+* ``REST``: not moving. The ZUPT anchors the velocity; the next start is measured from it
+  (the INS speed its last half-second left off zero, beyond the ZUPT's 1-sigma, tells the
+  chain the start's free INS runs off: :meth:`~.stop_clock.StopClock.rest_offset_mps`);
 * ``MEASURE``: after a start or a detected change the INS runs free (no wheel aid) until the
   body has settled (:mod:`.measurement`). A body-side change is
   anchored at its alarm on velocity continuity (the held model's speed at the onset plus the
@@ -138,6 +140,7 @@ class SlipModel:
         self._reset()
         self._stop.clear()
         self._from_rest = from_rest
+        self._rest_offset_mps = 0.0  # the speed the last rest's updates left (StopClock)
 
     def interrupt(self) -> None:
         """The INS went through a gap: its speed change across it says nothing about slip, so
@@ -167,10 +170,12 @@ class SlipModel:
                 return None
             if still_ns < int(STOP_S * _NS):
                 self._carried_var_mps2 = carried  # until the zero-speed aid below
+                self._rest_offset_mps = 0.0
                 return None
             # Wheels held still: the body is at rest unless it slides, which the gate catches.
             # This anchors the next start even where a vibrating IMU keeps the ZUPT off.
-            self._stop.rest_aided = True
+            self._stop.rest(t_ns, v)
+            self._rest_offset_mps = self._stop.rest_offset_mps(self.params.zupt_velocity_std_mps)
             return AidDecision(0.0, (2.0 * self.params.wheel_aid_std_mps) ** 2)
         steady = self._rim.add(t_ns, w)
         if self.slip_hold is None:
@@ -220,6 +225,8 @@ class SlipModel:
                                           self.aid_noise_var, self.spread_var[-1],
                                           SCALES_S[-1])
         from_rest, self._from_rest = self._from_rest, False
+        rest_offset = self._rest_offset_mps if from_rest else 0.0
+        self._rest_offset_mps = 0.0
         if drifting and self._previous is not None:
             return self._previous  # INS drift, not a change: the hold stays
         ra = self._run_ahead
@@ -227,7 +234,8 @@ class SlipModel:
             measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
             from_rest, unmeasured, not from_rest and ra.implausible(measured), ra.pitch_rad,
             self._pitch_std_rad, body_span_s, SCALES_S[-1], self._speed_var, body_window_s,
-            anchor is not None and not anchor.body and self._rim_spun(anchor, measured, w))
+            anchor is not None and not anchor.body and self._rim_spun(anchor, measured, w),
+            rest_offset)
 
     def _rim_spun(self, anchor: Anchor, measured: float, w: float) -> bool:
         """A wheel-side change from ``anchor`` read as ``measured`` at rim speed ``w`` is the

@@ -12,6 +12,9 @@ from __future__ import annotations
 _NS = 1_000_000_000
 STOP_S = 0.5
 """Wheels still for this long: the body is taken to be at rest (a zero-speed aid)."""
+REST_SETTLE_S = 0.5
+"""The rest's last stretch whose mean INS speed tells whether the zero-velocity updates have
+levelled the INS (:meth:`StopClock.rest_offset_mps`)."""
 
 
 class StopClock:
@@ -25,6 +28,26 @@ class StopClock:
         """No stop under way (the next still sample starts one)."""
         self._since_ns: int | None = None
         self.rest_aided = False  # the zero-speed aid of the current stop was given
+        self._rest_v: list[tuple[int, float]] = []  # (t, INS speed) at its aided samples
+
+    def rest(self, t_ns: int, v: float) -> None:
+        """A sample of the stop's zero-speed aid, the INS's forward speed ``v`` there."""
+        self.rest_aided = True
+        rest_v = self._rest_v
+        rest_v.append((t_ns, v))
+        while rest_v[0][0] < t_ns - int(REST_SETTLE_S * _NS):
+            rest_v.pop(0)
+
+    def rest_offset_mps(self, zupt_std_mps: float) -> float:
+        """The INS forward speed the rest's zero-velocity updates left: its mean over the last
+        ``REST_SETTLE_S`` where beyond ``zupt_std_mps`` (the updates' own 1-sigma; the samples
+        are correlated, so the mean's noise is not smaller), else 0, m/s. The updates pull the
+        speed to zero at each step, so an offset they leave for half a second is an
+        acceleration error (tilt, accelerometer bias) they have not removed, and the free INS
+        of the next start integrates it, with the offset's sign (:class:`~.chain.SlipChain`)."""
+        n = len(self._rest_v)
+        mean = sum(v for _t, v in self._rest_v) / n if n >= 3 else 0.0
+        return mean if abs(mean) > zupt_std_mps else 0.0
 
     def still_ns(self, t_ns: int, w: float) -> int | None:
         """How long the rim speed ``w`` has been below the moving threshold at ``t_ns``, ns
