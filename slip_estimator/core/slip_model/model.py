@@ -64,6 +64,7 @@ from slip_estimator.core.slip import speed_ratio
 from slip_estimator.core.slip_model.chain import (COARSE_CONTINUITY_FRACTION, RESOLVED_SIGMAS,
                                                   SlipChain, coarse_ins)
 from slip_estimator.core.slip_model.measurement import SlipMeasurement
+from slip_estimator.core.slip_model.records import ModelSample
 from slip_estimator.core.slip_model.step_test import SCALES_S, StepTest
 from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
 
@@ -125,14 +126,12 @@ class SlipModel:
         self._rim.clear()
         self._aided.clear()
         self.step_test.clear()
-        self._last_t_ns, self._aid_accel = 0, 0.0
-        self._pitch_std_rad = 0.0  # the filter's tilt 1-sigma at the last sample
         self._run_ahead.reset()
         self.chain.reset()
         self._reanchor, self._quiet_until_ns = False, 0
         self._carried_var_mps2 = 0.0  # the last hold's, while nothing re-measured the speed
-        self._reading_var: list[float] = []  # the filter's free-INS prediction per scale
-        self._speed_var = 0.0  # the filter's forward-speed variance at the last sample
+        # The filter's free-INS prediction per scale at the last sample (spread_var's floor).
+        self._reading_var_mps2: tuple[float, ...] = ()
 
     def reset(self, from_rest: bool) -> None:
         """Forget the held slip and the stop under way: a stop (``from_rest``: the next start
@@ -155,12 +154,10 @@ class SlipModel:
              turning: bool, pitch_rad: float = 0.0, aid_accel_mps2: float = 0.0,
              pitch_std_rad: float = 0.0, reading_var_mps2: list[float] | None = None,
              speed_var_mps2: float = 0.0) -> AidDecision | None:
-        self._last_t_ns = t_ns
-        self._reading_var = reading_var_mps2 or []
-        self._speed_var = speed_var_mps2
-        self._aid_accel = aid_accel_mps2
+        s = ModelSample(t_ns, w, v, v_free, aid_accel_mps2, pitch_std_rad,
+                        tuple(reading_var_mps2 or ()), speed_var_mps2)
+        self._reading_var_mps2 = s.reading_var_mps2
         self._run_ahead.add(t_ns, pitch_rad)
-        self._pitch_std_rad = pitch_std_rad
         still_ns = self._stop.still_ns(t_ns, w)
         if not moving:
             carried = self.held_speed_var_mps2(self._rim.last_mps or 0.0)
@@ -180,16 +177,15 @@ class SlipModel:
         steady = self._rim.add(t_ns, w)
         if self.slip_hold is None:
             self.mode = Mode.MEASURE
-            return self._measure(t_ns, w, v, v_free, steady, turning)
-        return self._track(t_ns, w, v, v_free, steady, turning)
+            return self._measure(s, steady, turning)
+        return self._track(s, steady, turning)
 
     def stopping(self, t_ns: int, w: float, awaits_aid: bool = True) -> bool:
         """The wheels are stopping, not stopped (:meth:`StopClock.stopping`)."""
         return self._stop.stopping(t_ns, w, awaits_aid)
 
     # ------------------------------------------------------------------ measuring
-    def _measure(self, t_ns: int, w: float, v: float, v_free: float, steady: bool,
-                 turning: bool) -> AidDecision | None:
+    def _measure(self, s: ModelSample, steady: bool, turning: bool) -> AidDecision | None:
         """The INS runs free until the body has settled
         (:class:`~slip_estimator.core.slip_model.measurement.SlipMeasurement`); then the measured
         slip is held as the chain decides and the velocity is anchored on it."""
@@ -197,19 +193,21 @@ class SlipModel:
         if turning or not steady:
             self._measurement.restart()
             return None
-        if not self._measurement.add(t_ns, w, v, v_free, self.aid_noise_var):
+        if not self._measurement.add(s.t_ns, s.w_mps, s.v_mps, s.v_free_mps,
+                                     self.aid_noise_var):
             return None
-        measured = self._settle(w)
+        measured = self._settle(s)
         self.slip_hold, self.mode = measured, Mode.TRACK
         self.step_test.clear()
         # Anchor the velocity on the new hold now (not gated: where the measurement snapped,
         # the INS is known to have drifted, it is not an outlier).
-        return AidDecision(speed_ratio(measured) * w, p.wheel_aid_std_mps ** 2, anchor=True,
-                           held_slip=measured)
+        return AidDecision(speed_ratio(measured) * s.w_mps, p.wheel_aid_std_mps ** 2,
+                           anchor=True, held_slip=measured)
 
-    def _settle(self, w: float) -> float:
+    def _settle(self, s: ModelSample) -> float:
         """The slip a finished measurement settles on: what it measured, held as the chain
         decides (baseline, false alarm, run-ahead: :class:`SlipChain`)."""
+        w = s.w_mps
         unmeasured = self._measurement.anchor is None and not self._from_rest
         # A body-side reading still moving at the timeout is INS drift (SlipMeasurement.
         # drifting). Where the filter's own error model says its INS cannot place a slip
@@ -217,9 +215,9 @@ class SlipModel:
         # body-side change to the free INS's predicted drift over its span (shortest scale),
         # a start from rest to the speed's variance at the end of its measurement.
         drifting = self._measurement.drifting()
-        body_span_s = self._measurement.body_span_s() if self._predicted_coarse(w) else None
+        body_span_s = self._measurement.body_span_s() if self._predicted_coarse(s) else None
         anchor = self._measurement.anchor
-        body_window_s = (anchor.t_ns * 1e-9, self._last_t_ns * 1e-9) \
+        body_window_s = (anchor.t_ns * 1e-9, s.t_ns * 1e-9) \
             if anchor is not None and anchor.body else None
         measured = self._measurement.slip(self._previous, self.params.slip_continuity_sigma,
                                           self.aid_noise_var, self.spread_var[-1],
@@ -233,7 +231,7 @@ class SlipModel:
         return self.chain.settle(
             measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
             from_rest, unmeasured, not from_rest and ra.implausible(measured), ra.pitch_rad,
-            self._pitch_std_rad, body_span_s, SCALES_S[-1], self._speed_var, body_window_s,
+            s.pitch_std_rad, body_span_s, SCALES_S[-1], s.speed_var_mps2, body_window_s,
             anchor is not None and not anchor.body and self._rim_spun(anchor, measured, w),
             rest_offset)
 
@@ -278,15 +276,15 @@ class SlipModel:
         learned online, or the filter's own prediction of the free INS over that scale if
         larger (``reading_var_mps2`` of :meth:`step`: a tilt the filter knows it does not
         know is a drift the step test must not take for slip, before it has learned it)."""
-        floor = self._reading_var
+        floor = self._reading_var_mps2
         if not floor:
             return self.step_test.spread_var
         return [max(a, b) for a, b in zip(self.step_test.spread_var, floor)]
 
-    def _predicted_coarse(self, w: float) -> bool:
+    def _predicted_coarse(self, s: ModelSample) -> bool:
         """The filter predicts its free INS over the shortest step-test scale too coarse to
-        place a slip within the low class at rim speed ``w`` (:func:`coarse_ins`)."""
-        return bool(self._reading_var) and coarse_ins(self._reading_var[0], w)
+        place a slip within the low class at the sample's rim speed (:func:`coarse_ins`)."""
+        return bool(s.reading_var_mps2) and coarse_ins(s.reading_var_mps2[0], s.w_mps)
 
     @property
     def rim_speed_mps(self) -> float | None:
@@ -306,9 +304,9 @@ class SlipModel:
                 self.params.slip_change_sigma * math.sqrt(self.spread_var[0]))
         return h * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
 
-    def _track(self, t_ns: int, w: float, v: float, v_free: float, steady: bool,
-               turning: bool) -> AidDecision | None:
+    def _track(self, s: ModelSample, steady: bool, turning: bool) -> AidDecision | None:
         p = self.params
+        t_ns, w, v, v_free = s.t_ns, s.w_mps, s.v_mps, s.v_free_mps
         g = speed_ratio(self.slip_hold)
         z = g * w
         if self._reanchor:
@@ -325,7 +323,7 @@ class SlipModel:
         # a rim changing speed showed 31 "changes" per drive on ground that never slipped,
         # each leaving the INS free for a second).
         threshold = self.wheel_change_mps(w)
-        if self._predicted_coarse(w):
+        if self._predicted_coarse(s):
             threshold = max(threshold,
                             self.params.slip_change_sigma * math.sqrt(self.aid_noise_var))
         if gap > threshold and \
@@ -348,8 +346,8 @@ class SlipModel:
         self._change_since_ns = None
         # Body side: a step of the free residual.
         k = self.params.slip_change_sigma * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
-        onset_ns = self.step_test.add(t_ns, v_free - z, self._aid_accel,
-                                      self.wheel_change_mps(w), k, self._reading_var)
+        onset_ns = self.step_test.add(t_ns, v_free - z, s.aid_accel_mps2,
+                                      self.wheel_change_mps(w), k, s.reading_var_mps2)
         if quiet:
             onset_ns = None
         if onset_ns is not None:
@@ -386,7 +384,7 @@ class SlipModel:
                                    p.wheel_aid_std_mps ** 2, anchor=True,
                                    take_back_since_ns=take_back)
         self._noise.add(t_ns, z - v)
-        self._aided.add(t_ns, z, v, v_free, self._aid_accel)
+        self._aided.add(t_ns, z, v, v_free, s.aid_accel_mps2)
         if not steady:
             # Speeding up or braking, the slip of a skid-steer rover is not the cruise slip
             # held, and the INS is good over the few tenths of a second it takes: no aid.
