@@ -67,10 +67,11 @@ from slip_estimator.core.slip_model.measurement import SlipMeasurement
 from slip_estimator.core.slip_model.records import ModelSample
 from slip_estimator.core.slip_model.step_test import SCALES_S, StepTest
 from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
+from slip_estimator.core.slip_model.thresholds import (body_change_mps, body_change_sigmas,
+                                                       predicted_coarse, spread_var_mps2,
+                                                       wheel_change_mps)
 
 _NS = 1_000_000_000
-_TURN_THRESHOLD_FACTOR = 1.5
-"""The INS is worse in turns (lever arm, skid): the body-side threshold is raised by this."""
 _WHEEL_CHANGE_S = 0.15
 """A wheel-side discrepancy that lasts this long is a change, not a noisy sample or an encoder
 glitch: the third consecutive sample at 10 Hz, the ninth at 50 Hz (a count of samples would
@@ -215,7 +216,8 @@ class SlipModel:
         # body-side change to the free INS's predicted drift over its span (shortest scale),
         # a start from rest to the speed's variance at the end of its measurement.
         drifting = self._measurement.drifting()
-        body_span_s = self._measurement.body_span_s() if self._predicted_coarse(s) else None
+        body_span_s = self._measurement.body_span_s() \
+            if predicted_coarse(s.reading_var_mps2, w) else None
         anchor = self._measurement.anchor
         body_window_s = (anchor.t_ns * 1e-9, s.t_ns * 1e-9) \
             if anchor is not None and anchor.body else None
@@ -229,7 +231,7 @@ class SlipModel:
             return self._previous  # INS drift, not a change: the hold stays
         ra = self._run_ahead
         return self.chain.settle(
-            measured, self._previous, w, self.spread_var[-1], self.wheel_change_mps(w),
+            measured, self._previous, w, self.spread_var[-1], wheel_change_mps(self.params, w),
             from_rest, unmeasured, not from_rest and ra.implausible(measured), ra.pitch_rad,
             s.pitch_std_rad, body_span_s, SCALES_S[-1], s.speed_var_mps2, body_window_s,
             anchor is not None and not anchor.body and self._rim_spun(anchor, measured, w),
@@ -272,37 +274,19 @@ class SlipModel:
     # ------------------------------------------------------------------ tracking
     @property
     def spread_var(self) -> list[float]:
-        """Variance of the free residual's change at each step-test scale, m^2/s^2: the one
-        learned online, or the filter's own prediction of the free INS over that scale if
-        larger (``reading_var_mps2`` of :meth:`step`: a tilt the filter knows it does not
-        know is a drift the step test must not take for slip, before it has learned it)."""
-        floor = self._reading_var_mps2
-        if not floor:
-            return self.step_test.spread_var
-        return [max(a, b) for a, b in zip(self.step_test.spread_var, floor)]
-
-    def _predicted_coarse(self, s: ModelSample) -> bool:
-        """The filter predicts its free INS over the shortest step-test scale too coarse to
-        place a slip within the low class at the sample's rim speed (:func:`coarse_ins`)."""
-        return bool(s.reading_var_mps2) and coarse_ins(s.reading_var_mps2[0], s.w_mps)
+        """Variance of the free residual's change at each step-test scale, m^2/s^2, floored
+        by the last sample's ``reading_var_mps2`` (:func:`~.thresholds.spread_var_mps2`)."""
+        return spread_var_mps2(self.step_test.spread_var, self._reading_var_mps2)
 
     @property
     def rim_speed_mps(self) -> float | None:
         """The rim speed of the last moving wheel sample, m/s (None at rest)."""
         return self._rim.last_mps
 
-    def wheel_change_mps(self, w: float) -> float:
-        """Aid innovation that signals a wheel-side slip change at rim speed ``w``, m/s."""
-        p = self.params
-        return max(p.slip_change_fraction * abs(w), 2.0 * p.wheel_aid_std_mps)
-
     def body_change_mps(self, w: float, turning: bool = False) -> float:
-        """CUSUM threshold h of a body-side change at rim speed ``w``, m/s: the wheel-side
-        threshold, or ``slip_change_sigma`` times the measured 1-s spread of the free residual
-        if larger (raised while turning)."""
-        h = max(self.wheel_change_mps(w),
-                self.params.slip_change_sigma * math.sqrt(self.spread_var[0]))
-        return h * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
+        """CUSUM threshold h of a body-side change at rim speed ``w``, m/s
+        (:func:`~.thresholds.body_change_mps` on :attr:`spread_var`)."""
+        return body_change_mps(self.params, self.spread_var, w, turning)
 
     def _track(self, s: ModelSample, steady: bool, turning: bool) -> AidDecision | None:
         p = self.params
@@ -322,8 +306,8 @@ class SlipModel:
         # consistency noise explains too (a consumer IMU's aided speed scatters by 0.13 m/s:
         # a rim changing speed showed 31 "changes" per drive on ground that never slipped,
         # each leaving the INS free for a second).
-        threshold = self.wheel_change_mps(w)
-        if self._predicted_coarse(s):
+        threshold = wheel_change_mps(p, w)
+        if predicted_coarse(s.reading_var_mps2, w):
             threshold = max(threshold,
                             self.params.slip_change_sigma * math.sqrt(self.aid_noise_var))
         if gap > threshold and \
@@ -345,9 +329,9 @@ class SlipModel:
             return None
         self._change_since_ns = None
         # Body side: a step of the free residual.
-        k = self.params.slip_change_sigma * (_TURN_THRESHOLD_FACTOR if turning else 1.0)
+        k = body_change_sigmas(p, turning)
         onset_ns = self.step_test.add(t_ns, v_free - z, s.aid_accel_mps2,
-                                      self.wheel_change_mps(w), k, s.reading_var_mps2)
+                                      wheel_change_mps(p, w), k, s.reading_var_mps2)
         if quiet:
             onset_ns = None
         if onset_ns is not None:
