@@ -64,25 +64,17 @@ from slip_estimator.core.slip import speed_ratio
 from slip_estimator.core.slip_model.chain import (COARSE_CONTINUITY_FRACTION, RESOLVED_SIGMAS,
                                                   SlipChain, coarse_ins)
 from slip_estimator.core.slip_model.measurement import SlipMeasurement
-from slip_estimator.core.slip_model.records import ModelSample
+from slip_estimator.core.slip_model.records import Change, ModelSample
 from slip_estimator.core.slip_model.step_test import SCALES_S, StepTest
 from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
 from slip_estimator.core.slip_model.thresholds import (body_change_mps, body_change_sigmas,
                                                        predicted_coarse, spread_var_mps2,
                                                        wheel_change_mps)
+from slip_estimator.core.slip_model.wheel_side import WheelSide
 
 _NS = 1_000_000_000
-_WHEEL_CHANGE_S = 0.15
-"""A wheel-side discrepancy that lasts this long is a change, not a noisy sample or an encoder
-glitch: the third consecutive sample at 10 Hz, the ninth at 50 Hz (a count of samples would
-take a 0.06-s glitch for a change at 50 Hz)."""
 _QUIET_AFTER_GAP_S = 4.0
 """After an IMU gap the filter settles its attitude and biases: no body-side step test."""
-_WHEEL_TAKE_BACK_S = SCALES_S[0]
-"""What the aid taught in this last stretch before a wheel-side change is taken back: a rim
-speed that moves (wheels spinning up, or a new commanded rate while the body slows in sand)
-was aided towards the old slip until the discrepancy lasted ``_WHEEL_CHANGE_S``; on the
-50-Hz robot that taught 0.09 m/s^2 in 0.5 s and the body's half of the change was lost."""
 CHANGE_LOOKBACK_S = SCALES_S[-1] + ANCHOR_S + 0.5
 """How far before a body-side alarm its onset and continuity anchor can lie, s."""
 
@@ -116,6 +108,7 @@ class SlipModel:
         self._rim = RimMemory()
         self._measurement = SlipMeasurement(params.slip_measure_s)
         self._stop = StopClock(params.moving_speed_threshold_mps)
+        self._wheel_side = WheelSide(params)
         self.reset(from_rest=True)  # a new filter starts from rest (or is told otherwise)
 
     def _reset(self) -> None:
@@ -123,7 +116,7 @@ class SlipModel:
         self.slip_hold: float | None = None
         self._previous: float | None = None
         self._measurement.start(None)
-        self._change_since_ns: int | None = None  # a wheel-side discrepancy since then
+        self._wheel_side.clear()
         self._rim.clear()
         self._aided.clear()
         self.step_test.clear()
@@ -299,35 +292,13 @@ class SlipModel:
             return AidDecision(z, p.wheel_aid_std_mps ** 2, anchor=True, repair=True)
         quiet = t_ns < self._quiet_until_ns
         # Wheel side: the rim speed moved and the body did not follow (or the reverse).
-        # The rim must have moved by at least half the discrepancy it is to explain (encoder
-        # noise moves it too; a body-side change leaves it where it was).
-        gap = abs(z - v)
-        # On an INS the filter knows too coarse (coarse_ins), by more than the wheel/INS
-        # consistency noise explains too (a consumer IMU's aided speed scatters by 0.13 m/s:
-        # a rim changing speed showed 31 "changes" per drive on ground that never slipped,
-        # each leaving the INS free for a second).
-        threshold = wheel_change_mps(p, w)
-        if predicted_coarse(s.reading_var_mps2, w):
-            threshold = max(threshold,
-                            self.params.slip_change_sigma * math.sqrt(self.aid_noise_var))
-        if gap > threshold and \
-                self._rim.moved_mps(w) * g > 0.5 * gap:
-            if self._change_since_ns is None:
-                self._change_since_ns = t_ns
-            if t_ns - self._change_since_ns >= int(_WHEEL_CHANGE_S * _NS):
-                # Continuity from before the rim began to move: on a ramp of the rim the aid
-                # pulled the INS along with the old slip until the discrepancy showed.
-                onset_ns = self._rim.onset_ns(w)
-                m = self._aided.before(onset_ns)
-                coarse = coarse_ins(self.spread_var[-1], w)  # (a consumer IMU: aided speed)
-                self._start_change(None if m is None else Anchor(
-                    m.z_mps, m.v_mps if coarse else m.v_free_mps, False,
-                    None if coarse else m.aid_accel_mps2, m.t_ns), 'wheel')
-                if self.baseline is not None:  # as for the body side (see there)
-                    return AidDecision(z, 0.0, update=False,
-                                       take_back_since_ns=t_ns - int(_WHEEL_TAKE_BACK_S * _NS))
-            return None
-        self._change_since_ns = None
+        discrepant, change = self._wheel_side.check(s, g, self._rim, self._aided,
+                                                    self.aid_noise_var, self.spread_var,
+                                                    self.baseline)
+        if change is not None:
+            return self._start_change(change)
+        if discrepant:
+            return None  # not yet a change: no aid, no step test
         # Body side: a step of the free residual.
         k = body_change_sigmas(p, turning)
         onset_ns = self.step_test.add(t_ns, v_free - z, s.aid_accel_mps2,
@@ -351,22 +322,21 @@ class SlipModel:
                     # As on the wheel side: the aided speed carries the continuity (the free
                     # speed of a 30-Hz consumer IMU moved 2-6 m/s more than the body over
                     # 2.75 s and its anchor reversed the body).
-                    self._start_change(Anchor(before.z_mps, before.v_mps, True,
-                                              t_ns=before.t_ns), 'body')
-                    return AidDecision(before.z_mps + v - before.v_mps,
-                                       p.wheel_aid_std_mps ** 2, anchor=True)
-                self._start_change(
-                    Anchor(before.z_mps, before.v_free_mps, True, t_ns=before.t_ns), 'body')
+                    return self._start_change(Change('body', Anchor(
+                        before.z_mps, before.v_mps, True, t_ns=before.t_ns), AidDecision(
+                            before.z_mps + v - before.v_mps, p.wheel_aid_std_mps ** 2,
+                            anchor=True)))
                 # Re-anchor now on continuity (the aid had been pulling the INS back onto the
                 # old slip): the held speed before the onset plus the free speed change since,
                 # without the aid corrections made since the onset. The mean free speed is the
                 # one at the window's mean time, with the aid's acceleration there (paired with
                 # the window's end, the continuity was off by that acceleration times 0.25 s:
                 # 0.04 m/s at 0.17 m/s^2).
-                return AidDecision(before.z_mps + v_free - before.v_free_mps
-                                   + before.aid_accel_mps2 * (t_ns - before.t_ns) * 1e-9,
-                                   p.wheel_aid_std_mps ** 2, anchor=True,
-                                   take_back_since_ns=take_back)
+                return self._start_change(Change('body', Anchor(
+                    before.z_mps, before.v_free_mps, True, t_ns=before.t_ns), AidDecision(
+                        before.z_mps + v_free - before.v_free_mps
+                        + before.aid_accel_mps2 * (t_ns - before.t_ns) * 1e-9,
+                        p.wheel_aid_std_mps ** 2, anchor=True, take_back_since_ns=take_back)))
         self._noise.add(t_ns, z - v)
         self._aided.add(t_ns, z, v, v_free, s.aid_accel_mps2)
         if not steady:
@@ -378,13 +348,16 @@ class SlipModel:
         # Turning, the wheels also skid sideways: the held slip is a looser constraint.
         return AidDecision(z, p.wheel_aid_std_mps ** 2 * (4.0 if turning else 1.0), repair=quiet)
 
-    def _start_change(self, anchor: Anchor | None, side: str) -> None:
+    def _start_change(self, change: Change) -> AidDecision | None:
+        """Measure ``change`` from its anchor (the hold before it is the chain's previous);
+        the decision it tells the filter at once."""
         self._carried_var_mps2 = self.held_speed_var_mps2(self._rim.last_mps or 0.0)
         self._previous = self.slip_hold
-        self._measurement.start(anchor)
+        self._measurement.start(change.anchor)
         self.slip_hold, self.mode = None, Mode.MEASURE
-        self._change_since_ns = None
+        self._wheel_side.clear()
         self._aided.clear()
         self.step_test.clear()
         self._from_rest = False
-        self.changes[side] += 1
+        self.changes[change.side] += 1
+        return change.decision

@@ -4,6 +4,10 @@ body's x axis, m/s. Only the standard library is used."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
+
+from slip_estimator.core.slip_model.aid_decision import AidDecision
+from slip_estimator.core.slip_model.aided_record import Anchor
 
 
 @dataclass(frozen=True, slots=True)
@@ -27,3 +31,14 @@ class ModelSample:
     m^2/s^2 (empty: none)"""
     speed_var_mps2: float
     """the filter's forward-speed variance, m^2/s^2"""
+
+
+class Change(NamedTuple):
+    """A slip change one side detected: the slip model starts measuring from ``anchor``."""
+
+    side: str
+    """'wheel' or 'body'"""
+    anchor: Anchor | None
+    """what the measurement continues from (None: no aided sample before it)"""
+    decision: AidDecision | None
+    """what the filter is told at once (a re-anchor, a take-back), or None"""
