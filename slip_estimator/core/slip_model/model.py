@@ -55,26 +55,23 @@ import enum
 import math
 
 from slip_estimator.core.slip_model.aid_decision import AidDecision
+from slip_estimator.core.slip_model.body_side import BodySide
 from slip_estimator.core.slip_model.aided_record import (ANCHOR_S, AidedRecord, Anchor,
                                                          ConsistencyNoise)
 from slip_estimator.core.params import Params
 from slip_estimator.core.slip_model.rim_memory import RimMemory
 from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
 from slip_estimator.core.slip import speed_ratio
-from slip_estimator.core.slip_model.chain import (COARSE_CONTINUITY_FRACTION, RESOLVED_SIGMAS,
-                                                  SlipChain, coarse_ins)
+from slip_estimator.core.slip_model.chain import RESOLVED_SIGMAS, SlipChain
 from slip_estimator.core.slip_model.measurement import SlipMeasurement
 from slip_estimator.core.slip_model.records import Change, ModelSample
 from slip_estimator.core.slip_model.step_test import SCALES_S, StepTest
 from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
-from slip_estimator.core.slip_model.thresholds import (body_change_mps, body_change_sigmas,
-                                                       predicted_coarse, spread_var_mps2,
-                                                       wheel_change_mps)
+from slip_estimator.core.slip_model.thresholds import (body_change_mps, predicted_coarse,
+                                                       spread_var_mps2, wheel_change_mps)
 from slip_estimator.core.slip_model.wheel_side import WheelSide
 
 _NS = 1_000_000_000
-_QUIET_AFTER_GAP_S = 4.0
-"""After an IMU gap the filter settles its attitude and biases: no body-side step test."""
 CHANGE_LOOKBACK_S = SCALES_S[-1] + ANCHOR_S + 0.5
 """How far before a body-side alarm its onset and continuity anchor can lie, s."""
 
@@ -109,6 +106,7 @@ class SlipModel:
         self._measurement = SlipMeasurement(params.slip_measure_s)
         self._stop = StopClock(params.moving_speed_threshold_mps)
         self._wheel_side = WheelSide(params)
+        self._body_side = BodySide(params)
         self.reset(from_rest=True)  # a new filter starts from rest (or is told otherwise)
 
     def _reset(self) -> None:
@@ -122,7 +120,7 @@ class SlipModel:
         self.step_test.clear()
         self._run_ahead.reset()
         self.chain.reset()
-        self._reanchor, self._quiet_until_ns = False, 0
+        self._body_side.clear()
         self._carried_var_mps2 = 0.0  # the last hold's, while nothing re-measured the speed
         # The filter's free-INS prediction per scale at the last sample (spread_var's floor).
         self._reading_var_mps2: tuple[float, ...] = ()
@@ -141,7 +139,7 @@ class SlipModel:
         self.step_test.clear()
         self._aided.clear()
         self._measurement.restart()
-        self._reanchor = True  # what the INS integrated across the gap is not the body's
+        self._body_side.interrupt()  # re-anchor on the held slip, then quiet
 
     # ------------------------------------------------------------------ the step
     def step(self, t_ns: int, w: float, v: float, v_free: float, moving: bool,
@@ -282,15 +280,14 @@ class SlipModel:
         return body_change_mps(self.params, self.spread_var, w, turning)
 
     def _track(self, s: ModelSample, steady: bool, turning: bool) -> AidDecision | None:
+        """Aid the held slip, unless a change shows on the wheel side (:mod:`.wheel_side`) or
+        the body side (:mod:`.body_side`): then measure it (:meth:`_start_change`)."""
         p = self.params
         t_ns, w, v, v_free = s.t_ns, s.w_mps, s.v_mps, s.v_free_mps
         g = speed_ratio(self.slip_hold)
         z = g * w
-        if self._reanchor:
-            self._reanchor = False
-            self._quiet_until_ns = t_ns + int(_QUIET_AFTER_GAP_S * _NS)
+        if self._body_side.gap_closed(t_ns):
             return AidDecision(z, p.wheel_aid_std_mps ** 2, anchor=True, repair=True)
-        quiet = t_ns < self._quiet_until_ns
         # Wheel side: the rim speed moved and the body did not follow (or the reverse).
         discrepant, change = self._wheel_side.check(s, g, self._rim, self._aided,
                                                     self.aid_noise_var, self.spread_var,
@@ -300,43 +297,10 @@ class SlipModel:
         if discrepant:
             return None  # not yet a change: no aid, no step test
         # Body side: a step of the free residual.
-        k = body_change_sigmas(p, turning)
-        onset_ns = self.step_test.add(t_ns, v_free - z, s.aid_accel_mps2,
-                                      wheel_change_mps(p, w), k, s.reading_var_mps2)
-        if quiet:
-            onset_ns = None
-        if onset_ns is not None:
-            # Continuity from before the longest scale: a transition slower than the scale
-            # that fired began earlier, while the aid still held the old slip.
-            onset_ns = min(onset_ns, t_ns - int(SCALES_S[-1] * _NS))
-            before = self._aided.before(onset_ns)
-            if before is not None:
-                # Once a stop measured the ground, the aid's tilt and bias corrections since
-                # the onset are the old slip's and are taken back; after a start in motion
-                # they are still levelling the INS (a 30-Hz consumer IMU lost 1-2.5 deg), as
-                # on an INS too coarse for its free speed to carry the continuity.
-                coarse = coarse_ins(self.spread_var[-1], w, COARSE_CONTINUITY_FRACTION)
-                take_back = before.last_ns if self.baseline is not None and not coarse \
-                    else None
-                if coarse:
-                    # As on the wheel side: the aided speed carries the continuity (the free
-                    # speed of a 30-Hz consumer IMU moved 2-6 m/s more than the body over
-                    # 2.75 s and its anchor reversed the body).
-                    return self._start_change(Change('body', Anchor(
-                        before.z_mps, before.v_mps, True, t_ns=before.t_ns), AidDecision(
-                            before.z_mps + v - before.v_mps, p.wheel_aid_std_mps ** 2,
-                            anchor=True)))
-                # Re-anchor now on continuity (the aid had been pulling the INS back onto the
-                # old slip): the held speed before the onset plus the free speed change since,
-                # without the aid corrections made since the onset. The mean free speed is the
-                # one at the window's mean time, with the aid's acceleration there (paired with
-                # the window's end, the continuity was off by that acceleration times 0.25 s:
-                # 0.04 m/s at 0.17 m/s^2).
-                return self._start_change(Change('body', Anchor(
-                    before.z_mps, before.v_free_mps, True, t_ns=before.t_ns), AidDecision(
-                        before.z_mps + v_free - before.v_free_mps
-                        + before.aid_accel_mps2 * (t_ns - before.t_ns) * 1e-9,
-                        p.wheel_aid_std_mps ** 2, anchor=True, take_back_since_ns=take_back)))
+        change = self._body_side.check(s, g, turning, self.step_test, self._aided,
+                                       self.baseline)
+        if change is not None:
+            return self._start_change(change)
         self._noise.add(t_ns, z - v)
         self._aided.add(t_ns, z, v, v_free, s.aid_accel_mps2)
         if not steady:
@@ -346,7 +310,8 @@ class SlipModel:
             # INS on the real rover drifts by more than the steps it would wait for.)
             return None
         # Turning, the wheels also skid sideways: the held slip is a looser constraint.
-        return AidDecision(z, p.wheel_aid_std_mps ** 2 * (4.0 if turning else 1.0), repair=quiet)
+        return AidDecision(z, p.wheel_aid_std_mps ** 2 * (4.0 if turning else 1.0),
+                           repair=self._body_side.quiet(t_ns))
 
     def _start_change(self, change: Change) -> AidDecision | None:
         """Measure ``change`` from its anchor (the hold before it is the chain's previous);

@@ -78,7 +78,7 @@ class WheelSide:
             m.z_mps, m.v_mps if coarse else m.v_free_mps, False,
             None if coarse else m.aid_accel_mps2, m.t_ns)
         take_back = None
-        if baseline is not None:  # as for the body side (see there)
+        if baseline is not None:  # as for the body side (:mod:`.body_side`)
             take_back = AidDecision(z, 0.0, update=False,
                                     take_back_since_ns=t_ns - int(WHEEL_TAKE_BACK_S * _NS))
         return True, Change('wheel', anchor, take_back)
