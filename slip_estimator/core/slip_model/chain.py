@@ -152,7 +152,7 @@ class SlipChain:
             speed, the baseline is also the resolved ``ground``.
         body_window_s : for any body-side change, (its continuity anchor, its end), s.
         rim_spun : the rim stepped beyond what the INS misses and the body did not follow
-            (``SlipModel._rim_spun``): a new level held adds nothing to ``ins_chain_var``.
+            (:func:`~.settling.rim_spun`): a new level held adds nothing to ``ins_chain_var``.
         rest_offset_mps : for a start from rest, the forward speed the rest's zero-velocity
             updates left (:meth:`~.stop_clock.StopClock.rest_offset_mps`, 0 where none): the
             start's free INS integrates that acceleration, and its speed errs to the offset's

@@ -52,23 +52,21 @@ only the standard library is used.
 from __future__ import annotations
 
 import enum
-import math
 
 from slip_estimator.core.slip_model.aid_decision import AidDecision
 from slip_estimator.core.slip_model.body_side import BodySide
-from slip_estimator.core.slip_model.aided_record import (ANCHOR_S, AidedRecord, Anchor,
-                                                         ConsistencyNoise)
+from slip_estimator.core.slip_model.aided_record import ANCHOR_S, AidedRecord, ConsistencyNoise
 from slip_estimator.core.params import Params
 from slip_estimator.core.slip_model.rim_memory import RimMemory
 from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
 from slip_estimator.core.slip import speed_ratio
-from slip_estimator.core.slip_model.chain import RESOLVED_SIGMAS, SlipChain
+from slip_estimator.core.slip_model.chain import SlipChain
 from slip_estimator.core.slip_model.measurement import SlipMeasurement
 from slip_estimator.core.slip_model.records import Change, ModelSample
+from slip_estimator.core.slip_model.settling import settle
 from slip_estimator.core.slip_model.step_test import SCALES_S, StepTest
 from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
-from slip_estimator.core.slip_model.thresholds import (body_change_mps, predicted_coarse,
-                                                       spread_var_mps2, wheel_change_mps)
+from slip_estimator.core.slip_model.thresholds import body_change_mps, spread_var_mps2
 from slip_estimator.core.slip_model.wheel_side import WheelSide
 
 _NS = 1_000_000_000
@@ -188,59 +186,17 @@ class SlipModel:
         if not self._measurement.add(s.t_ns, s.w_mps, s.v_mps, s.v_free_mps,
                                      self.aid_noise_var):
             return None
-        measured = self._settle(s)
+        # The measurement ends the start from rest (and the offset its rest left).
+        from_rest, rest_offset_mps = self._from_rest, self._rest_offset_mps
+        self._from_rest, self._rest_offset_mps = False, 0.0
+        measured = settle(s, self._measurement, self.chain, self._run_ahead, self._previous,
+                          from_rest, rest_offset_mps, self.spread_var, self.aid_noise_var, p)
         self.slip_hold, self.mode = measured, Mode.TRACK
         self.step_test.clear()
         # Anchor the velocity on the new hold now (not gated: where the measurement snapped,
         # the INS is known to have drifted, it is not an outlier).
         return AidDecision(speed_ratio(measured) * s.w_mps, p.wheel_aid_std_mps ** 2,
                            anchor=True, held_slip=measured)
-
-    def _settle(self, s: ModelSample) -> float:
-        """The slip a finished measurement settles on: what it measured, held as the chain
-        decides (baseline, false alarm, run-ahead: :class:`SlipChain`)."""
-        w = s.w_mps
-        unmeasured = self._measurement.anchor is None and not self._from_rest
-        # A body-side reading still moving at the timeout is INS drift (SlipMeasurement.
-        # drifting). Where the filter's own error model says its INS cannot place a slip
-        # within the low class (coarse_ins), a reading is held to what that INS resolves: a
-        # body-side change to the free INS's predicted drift over its span (shortest scale),
-        # a start from rest to the speed's variance at the end of its measurement.
-        drifting = self._measurement.drifting()
-        body_span_s = self._measurement.body_span_s() \
-            if predicted_coarse(s.reading_var_mps2, w) else None
-        anchor = self._measurement.anchor
-        body_window_s = (anchor.t_ns * 1e-9, s.t_ns * 1e-9) \
-            if anchor is not None and anchor.body else None
-        measured = self._measurement.slip(self._previous, self.params.slip_continuity_sigma,
-                                          self.aid_noise_var, self.spread_var[-1],
-                                          SCALES_S[-1])
-        from_rest, self._from_rest = self._from_rest, False
-        rest_offset = self._rest_offset_mps if from_rest else 0.0
-        self._rest_offset_mps = 0.0
-        if drifting and self._previous is not None:
-            return self._previous  # INS drift, not a change: the hold stays
-        ra = self._run_ahead
-        return self.chain.settle(
-            measured, self._previous, w, self.spread_var[-1], wheel_change_mps(self.params, w),
-            from_rest, unmeasured, not from_rest and ra.implausible(measured), ra.pitch_rad,
-            s.pitch_std_rad, body_span_s, SCALES_S[-1], s.speed_var_mps2, body_window_s,
-            anchor is not None and not anchor.body and self._rim_spun(anchor, measured, w),
-            rest_offset)
-
-    def _rim_spun(self, anchor: Anchor, measured: float, w: float) -> bool:
-        """A wheel-side change from ``anchor`` read as ``measured`` at rim speed ``w`` is the
-        wheels': the rim stepped by more than the INS misses over its shortest scale
-        (``RESOLVED_SIGMAS`` of the 1-s spread) and the body's speed change differs from that
-        step by as much (the wheels spun up or gripped again; the INS resolved it). A rim held
-        steady while the slip moved is not: there the INS alone read the change."""
-        g_before = speed_ratio(self._previous) if self._previous is not None else 0.0
-        if g_before <= 0.0:
-            return False
-        resolved_mps = RESOLVED_SIGMAS * math.sqrt(self.spread_var[0])
-        rim_step = w - anchor.z_mps / g_before
-        body_step = speed_ratio(measured) * w - anchor.z_mps
-        return abs(rim_step) > resolved_mps and abs(rim_step - body_step) > resolved_mps
 
     def held_speed_var_mps2(self, w: float) -> float:
         """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided
