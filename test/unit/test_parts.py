@@ -719,6 +719,21 @@ def test_the_stop_clock_counts_still_wheels_and_waits_for_the_stops_aid() -> Non
     assert not clock.rest_aided and clock.still_ns(t[stop_k + 3], 0.0) == 0
 
 
+def test_still_wheels_bring_the_zero_speed_aid_after_stop_s_with_the_rest_offset() -> None:
+    """No aid while the body is taken to be stopping; from STOP_S on each still sample is the
+    rest's, and the offset is the mean INS speed once three samples beyond the ZUPT's 1-sigma
+    have been seen (0 before, and 0 within it)."""
+    ns = 1_000_000_000
+    clock = StopClock(0.02)
+    t = [round(k * 0.1 * ns) for k in range(10)]
+    stop_k = round(STOP_S / 0.1)
+    offsets = [clock.zero_speed_aid(x, clock.still_ns(x, 0.0), -0.02, 0.01) for x in t]
+    assert offsets[:stop_k] == [None] * stop_k and not clock.stopping(t[-1], 0.0)
+    assert offsets[stop_k:stop_k + 2] == [0.0, 0.0]  # fewer than three samples
+    assert offsets[stop_k + 2:] == pytest.approx([-0.02] * (len(t) - stop_k - 2))
+    assert clock.zero_speed_aid(t[-1], clock.still_ns(t[-1], 0.0), -0.02, 0.03) == 0.0
+
+
 def test_a_change_continues_from_the_aided_mean_before_its_onset() -> None:
     """The anchor is the mean over the ANCHOR_S before the onset, or the oldest sample where
     none is that old."""

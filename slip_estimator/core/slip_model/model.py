@@ -65,11 +65,10 @@ from slip_estimator.core.slip_model.measurement import SlipMeasurement
 from slip_estimator.core.slip_model.records import Change, ModelSample
 from slip_estimator.core.slip_model.settling import settle
 from slip_estimator.core.slip_model.step_test import SCALES_S, StepTest
-from slip_estimator.core.slip_model.stop_clock import STOP_S, StopClock
+from slip_estimator.core.slip_model.stop_clock import StopClock
 from slip_estimator.core.slip_model.thresholds import body_change_mps, spread_var_mps2
 from slip_estimator.core.slip_model.wheel_side import WheelSide
 
-_NS = 1_000_000_000
 CHANGE_LOOKBACK_S = SCALES_S[-1] + ANCHOR_S + 0.5
 """How far before a body-side alarm its onset and continuity anchor can lie, s."""
 
@@ -150,25 +149,31 @@ class SlipModel:
         self._run_ahead.add(t_ns, pitch_rad)
         still_ns = self._stop.still_ns(t_ns, w)
         if not moving:
-            carried = self.held_speed_var_mps2(self._rim.last_mps or 0.0)
-            self._reset()  # the stop under way is kept
-            self._from_rest = True
-            if still_ns is None:  # the rim is above the moving threshold
-                return None
-            if still_ns < int(STOP_S * _NS):
-                self._carried_var_mps2 = carried  # until the zero-speed aid below
-                self._rest_offset_mps = 0.0
-                return None
-            # Wheels held still: the body is at rest unless it slides, which the gate catches.
-            # This anchors the next start even where a vibrating IMU keeps the ZUPT off.
-            self._stop.rest(t_ns, v)
-            self._rest_offset_mps = self._stop.rest_offset_mps(self.params.zupt_velocity_std_mps)
-            return AidDecision(0.0, (2.0 * self.params.wheel_aid_std_mps) ** 2)
+            return self._stopped(s, still_ns)
         steady = self._rim.add(t_ns, w)
         if self.slip_hold is None:
             self.mode = Mode.MEASURE
             return self._measure(s, steady, turning)
         return self._track(s, steady, turning)
+
+    def _stopped(self, s: ModelSample, still_ns: int | None) -> AidDecision | None:
+        """Not moving: the held slip is forgotten and the next start is from rest; wheels
+        still for ``still_ns`` bring the stop's zero-speed aid (:meth:`StopClock.zero_speed_aid`:
+        None while above the moving threshold, ns)."""
+        p = self.params
+        carried = self.held_speed_var_mps2(self._rim.last_mps or 0.0)
+        self._reset()  # the stop under way is kept
+        self._from_rest = True
+        if still_ns is None:  # the rim is above the moving threshold
+            return None
+        rest_offset_mps = self._stop.zero_speed_aid(s.t_ns, still_ns, s.v_mps,
+                                                    p.zupt_velocity_std_mps)
+        if rest_offset_mps is None:  # stopping
+            self._carried_var_mps2 = carried  # until the zero-speed aid
+            self._rest_offset_mps = 0.0
+            return None
+        self._rest_offset_mps = rest_offset_mps
+        return AidDecision(0.0, (2.0 * p.wheel_aid_std_mps) ** 2)
 
     def stopping(self, t_ns: int, w: float, awaits_aid: bool = True) -> bool:
         """The wheels are stopping, not stopped (:meth:`StopClock.stopping`)."""

@@ -59,6 +59,20 @@ class StopClock:
             self._since_ns = t_ns
         return t_ns - self._since_ns
 
+    def zero_speed_aid(self, t_ns: int, still_ns: int, v: float,
+                       zupt_std_mps: float) -> float | None:
+        """Whether wheels still for ``still_ns`` (:meth:`still_ns`) bring the stop's
+        zero-speed aid at ``t_ns``: None while the body is taken to be stopping (less than
+        ``STOP_S``); else the sample is the rest's (the INS's forward speed ``v`` there,
+        :meth:`rest`) and the INS speed its updates have left, m/s (:meth:`rest_offset_mps`
+        beyond ``zupt_std_mps``, else 0)."""
+        if still_ns < int(STOP_S * _NS):
+            return None
+        # Wheels held still: the body is at rest unless it slides, which the gate catches.
+        # This anchors the next start even where a vibrating IMU keeps the ZUPT off.
+        self.rest(t_ns, v)
+        return self.rest_offset_mps(zupt_std_mps)
+
     def stopping(self, t_ns: int, w: float, awaits_aid: bool = True) -> bool:
         """The rim speed ``w`` fell below the moving threshold less than ``STOP_S`` ago, or,
         with ``awaits_aid``, the stop's zero-speed aid has not been given yet: the sample it
