@@ -43,14 +43,20 @@ Its parts, in the order a wheel sample meets them
 -------------------------------------------------
 * :mod:`.wheel_aid` -- what a wheel sample may tell the filter (the model, a recovery
   re-anchor, wheels that just stopped);
-* :mod:`.model` -- the model itself (modes REST / MEASURE / TRACK) and its decisions;
+* :mod:`.model` -- the model itself (modes REST / MEASURE / TRACK): it owns the parts below,
+  hands them the sample (:mod:`.records`) and applies what they return;
+* :mod:`.stop_clock` -- when still wheels are a stop, and its zero-speed aid;
 * :mod:`.rim_memory` -- the rim speeds it remembers (steady, how far they moved, when);
-* :mod:`.stop_clock` -- when still wheels are a stop;
-* :mod:`.aided_record` -- the recent aided samples: a change's continuity anchor and the
-  wheel/INS consistency noise;
-* :mod:`.step_test` -- the multi-scale step test on the free residual (body-side changes);
 * :mod:`.measurement` -- one slip measurement while the INS runs free;
+* :mod:`.settling` -- the slip a finished measurement settles on;
 * :mod:`.chain` -- what a measured slip is held as (baseline, false alarm, chain spread);
 * :mod:`.run_ahead` -- when a body can run ahead of its wheels;
+* :mod:`.wheel_side` -- wheel-side changes (the rim moved, the body did not follow);
+* :mod:`.body_side` -- body-side changes (an alarm of the step test, its continuity anchor);
+* :mod:`.step_test` -- the multi-scale step test on the free residual;
+* :mod:`.thresholds` -- the change thresholds;
+* :mod:`.aided_record` -- the recent aided samples: a change's continuity anchor and the
+  wheel/INS consistency noise;
+* :mod:`.records` -- the sample's inputs and a detected change, as the parts exchange them;
 * :mod:`.aid_decision` -- :class:`~.aid_decision.AidDecision`, what the filter is told.
 """

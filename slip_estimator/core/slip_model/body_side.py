@@ -1,8 +1,20 @@
 """Body-side change detection while a slip is held: a step of the free residual
 ``v_free - g(s_hold) w`` in the multi-scale step test (:mod:`.step_test`), anchored on velocity
 continuity from the aided samples before its onset (:meth:`~.aided_record.AidedRecord.before`),
-and quiet for ``QUIET_AFTER_GAP_S`` after an IMU gap. Speeds in m/s. Only the standard library
-is used.
+and quiet for ``QUIET_AFTER_GAP_S`` after an IMU gap. Speeds in m/s.
+
+A body-side change is anchored at its alarm on velocity continuity (the held model's speed at
+the onset plus the INS speed change since) by an update of the aid's variance, which moves the
+velocity as far as the filter's own velocity variance lets it: 78 % of the way (median) on the
+real test17run IMU, 10-24 % on the simulated ones (a full reset measured worse on the real log,
+docs/limits.md). Until the alarm the aid pulled the INS towards the old slip, and the filter
+took the pull for tilt and accelerometer bias: the alarm takes those corrections back
+(``AidDecision.take_back_since_ns``), or the free INS measures the change short (patch entries
+read 30-40 % low). Not after a start in motion: there the aid is still levelling the INS (a
+30-Hz consumer IMU lost 1-2.5 deg). Nor on an INS whose free speed scatters beyond
+``COARSE_CONTINUITY_FRACTION`` of the rim speed: there the aided speed carries the continuity,
+as on the wheel side (the free speed of the 30-Hz consumer robot ran 2-6 m/s from the body over
+the anchor's span). Only the standard library is used.
 """
 from __future__ import annotations
 

@@ -25,24 +25,30 @@ Modes (:class:`Mode`):
   (the INS speed its last half-second left off zero, beyond the ZUPT's 1-sigma, tells the
   chain the start's free INS runs off: :meth:`~.stop_clock.StopClock.rest_offset_mps`);
 * ``MEASURE``: after a start or a detected change the INS runs free (no wheel aid) until the
-  body has settled (:mod:`.measurement`). A body-side change is
-  anchored at its alarm on velocity continuity (the held model's speed at the onset plus the
-  INS speed change since) by an update of the aid's variance, which moves the velocity as far
-  as the filter's own velocity variance lets it: 78 % of the way (median) on the real
-  test17run IMU, 10-24 % on the simulated ones (a full reset measured worse on the real log,
-  docs/limits.md). Until the alarm the aid pulled the INS towards the old slip, and the filter took
-  the pull for tilt and accelerometer bias: the alarm takes those corrections back
-  (``AidDecision.take_back_since_ns``), or the free INS measures the change short (patch
-  entries read 30-40 % low). Not after a start in motion: there the aid is still levelling
-  the INS (a 30-Hz consumer IMU lost 1-2.5 deg). Nor on an INS whose free speed scatters
-  beyond ``COARSE_CONTINUITY_FRACTION`` of the rim speed: there the aided speed carries the
-  continuity, as on the wheel side (the free speed of the 30-Hz consumer robot ran 2-6 m/s
-  from the body over the anchor's span). The measured slip is then held as
-  :mod:`.chain` decides (the ground's baseline, a false alarm, a
-  run-ahead no slope explains);
+  body has settled (:mod:`.measurement`); the measured slip is then held as :mod:`.chain`
+  decides (the ground's baseline, a false alarm, a run-ahead no slope explains:
+  :mod:`.settling`). A body-side change is anchored at its alarm on velocity continuity and
+  the aid's corrections since its onset are taken back (:mod:`.body_side`); a wheel-side one
+  is measured from before the rim began to move (:mod:`.wheel_side`);
 * ``TRACK``: the held slip turns the rim speed into a forward-speed aid ``g(s_hold) w`` that
-  stops the INS drift without assuming zero slip, while the step test watches for the next
-  step (no aid while the rim speed changes: encoder lag).
+  stops the INS drift without assuming zero slip, while both sides watch for the next
+  change (no aid while the rim speed changes: encoder lag).
+
+Its parts, in the order a wheel sample meets them; the model owns them, hands each the
+sample's inputs (:class:`~.records.ModelSample`) and applies what they return:
+
+* :class:`~.stop_clock.StopClock` -- when still wheels are a stop and bring the zero-speed aid;
+* :class:`~.rim_memory.RimMemory` -- whether the rim speed is steady, how far and since when
+  it moved;
+* ``MEASURE``: :class:`~.measurement.SlipMeasurement` and :func:`~.settling.settle` -- one
+  measurement and what it settles on (:class:`~.chain.SlipChain`,
+  :class:`~.run_ahead.RunAheadCheck`);
+* ``TRACK``: :class:`~.wheel_side.WheelSide` and :class:`~.body_side.BodySide` (which feeds
+  the :class:`~.step_test.StepTest`) -- a change on either side, returned as a
+  :class:`~.records.Change` (its anchor and what the filter is told at once);
+* :class:`~.aided_record.AidedRecord` and :class:`~.aided_record.ConsistencyNoise` -- the
+  aided samples a change continues from, and the wheel/INS consistency noise;
+* :mod:`.thresholds` -- the change thresholds from the parameters and the learned spread.
 
 Where it fails: a slip changing over tens of seconds is absorbed as INS drift; a change below
 ``slip_change_fraction`` of the rim speed is not seen; turns raise the thresholds; a
@@ -53,16 +59,16 @@ from __future__ import annotations
 
 import enum
 
-from slip_estimator.core.slip_model.aid_decision import AidDecision
-from slip_estimator.core.slip_model.body_side import BodySide
-from slip_estimator.core.slip_model.aided_record import ANCHOR_S, AidedRecord, ConsistencyNoise
 from slip_estimator.core.params import Params
-from slip_estimator.core.slip_model.rim_memory import RimMemory
-from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
 from slip_estimator.core.slip import speed_ratio
+from slip_estimator.core.slip_model.aid_decision import AidDecision
+from slip_estimator.core.slip_model.aided_record import ANCHOR_S, AidedRecord, ConsistencyNoise
+from slip_estimator.core.slip_model.body_side import BodySide
 from slip_estimator.core.slip_model.chain import SlipChain
 from slip_estimator.core.slip_model.measurement import SlipMeasurement
 from slip_estimator.core.slip_model.records import Change, ModelSample
+from slip_estimator.core.slip_model.rim_memory import RimMemory
+from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
 from slip_estimator.core.slip_model.settling import settle
 from slip_estimator.core.slip_model.step_test import SCALES_S, StepTest
 from slip_estimator.core.slip_model.stop_clock import StopClock
@@ -74,6 +80,8 @@ CHANGE_LOOKBACK_S = SCALES_S[-1] + ANCHOR_S + 0.5
 
 
 class Mode(enum.Enum):
+    """What the model does with a wheel sample (see the module docstring)."""
+
     REST = 'rest'
     MEASURE = 'measure'
     TRACK = 'track'
@@ -82,12 +90,9 @@ class Mode(enum.Enum):
 class SlipModel:
     """Slip change detection on both sides and wheel-aid decisions (see the module docstring).
 
-    ``step`` takes one wheel sample: rim speed ``w``, the filter's forward speed ``v`` and the
-    free forward speed ``v_free`` (the filter's, less everything the wheel aid did to it) and
-    the along-track acceleration the aid's corrections cause now, ``aid_accel_mps2``, at the
-    wheel time, and returns the aid to apply or None. The free speed's change from a past
-    sample plus that sample's aid acceleration times the elapsed time is the speed change the
-    INS saw without the aid corrections made in between.
+    ``step`` takes one wheel sample: rim speed ``w``, the filter's forward speed ``v``, the
+    free forward speed ``v_free`` and the rest of a :class:`~.records.ModelSample`, and
+    returns the aid to apply or None.
     """
 
     def __init__(self, params: Params) -> None:
@@ -107,6 +112,7 @@ class SlipModel:
         self.reset(from_rest=True)  # a new filter starts from rest (or is told otherwise)
 
     def _reset(self) -> None:
+        """Forget the held slip, its measurement and what the parts remember of the drive."""
         self.mode = Mode.REST
         self.slip_hold: float | None = None
         self._previous: float | None = None
@@ -143,6 +149,8 @@ class SlipModel:
              turning: bool, pitch_rad: float = 0.0, aid_accel_mps2: float = 0.0,
              pitch_std_rad: float = 0.0, reading_var_mps2: list[float] | None = None,
              speed_var_mps2: float = 0.0) -> AidDecision | None:
+        """One wheel sample (see the class docstring), dispatched by mode: the decision of the
+        part that handled it."""
         s = ModelSample(t_ns, w, v, v_free, aid_accel_mps2, pitch_std_rad,
                         tuple(reading_var_mps2 or ()), speed_var_mps2)
         self._reading_var_mps2 = s.reading_var_mps2
@@ -175,11 +183,6 @@ class SlipModel:
         self._rest_offset_mps = rest_offset_mps
         return AidDecision(0.0, (2.0 * p.wheel_aid_std_mps) ** 2)
 
-    def stopping(self, t_ns: int, w: float, awaits_aid: bool = True) -> bool:
-        """The wheels are stopping, not stopped (:meth:`StopClock.stopping`)."""
-        return self._stop.stopping(t_ns, w, awaits_aid)
-
-    # ------------------------------------------------------------------ measuring
     def _measure(self, s: ModelSample, steady: bool, turning: bool) -> AidDecision | None:
         """The INS runs free until the body has settled
         (:class:`~slip_estimator.core.slip_model.measurement.SlipMeasurement`); then the measured
@@ -202,43 +205,6 @@ class SlipModel:
         # the INS is known to have drifted, it is not an outlier).
         return AidDecision(speed_ratio(measured) * s.w_mps, p.wheel_aid_std_mps ** 2,
                            anchor=True, held_slip=measured)
-
-    def held_speed_var_mps2(self, w: float) -> float:
-        """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided
-        covariance knows nothing of the hold), m^2/s^2 (:meth:`SlipChain.held_speed_var_mps2`);
-        carried through a change's measurement and into a stop until the zero-speed aid (the
-        hold's error stays in the INS; at a stop it is not the body sliding on)."""
-        if self.mode is not Mode.TRACK:
-            return self._carried_var_mps2
-        return self.chain.held_speed_var_mps2(w, self.spread_var[-1])
-
-    @property
-    def aid_noise_var(self) -> float:
-        """Measured wheel/INS consistency noise (the aid's innovation variance), m^2/s^2
-        (:class:`~slip_estimator.core.slip_model.aided_record.ConsistencyNoise`)."""
-        return self._noise.var_mps2
-
-    @property
-    def baseline(self) -> float | None:
-        """The ground's slip measured after the last start from rest (None before one)."""
-        return self.chain.baseline
-
-    # ------------------------------------------------------------------ tracking
-    @property
-    def spread_var(self) -> list[float]:
-        """Variance of the free residual's change at each step-test scale, m^2/s^2, floored
-        by the last sample's ``reading_var_mps2`` (:func:`~.thresholds.spread_var_mps2`)."""
-        return spread_var_mps2(self.step_test.spread_var, self._reading_var_mps2)
-
-    @property
-    def rim_speed_mps(self) -> float | None:
-        """The rim speed of the last moving wheel sample, m/s (None at rest)."""
-        return self._rim.last_mps
-
-    def body_change_mps(self, w: float, turning: bool = False) -> float:
-        """CUSUM threshold h of a body-side change at rim speed ``w``, m/s
-        (:func:`~.thresholds.body_change_mps` on :attr:`spread_var`)."""
-        return body_change_mps(self.params, self.spread_var, w, turning)
 
     def _track(self, s: ModelSample, steady: bool, turning: bool) -> AidDecision | None:
         """Aid the held slip, unless a change shows on the wheel side (:mod:`.wheel_side`) or
@@ -287,3 +253,44 @@ class SlipModel:
         self._from_rest = False
         self.changes[change.side] += 1
         return change.decision
+
+    # -------------------------------------------------- what the estimator reads
+    def stopping(self, t_ns: int, w: float, awaits_aid: bool = True) -> bool:
+        """The wheels are stopping, not stopped (:meth:`StopClock.stopping`)."""
+        return self._stop.stopping(t_ns, w, awaits_aid)
+
+    def held_speed_var_mps2(self, w: float) -> float:
+        """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided
+        covariance knows nothing of the hold), m^2/s^2 (:meth:`SlipChain.held_speed_var_mps2`);
+        carried through a change's measurement and into a stop until the zero-speed aid (the
+        hold's error stays in the INS; at a stop it is not the body sliding on)."""
+        if self.mode is not Mode.TRACK:
+            return self._carried_var_mps2
+        return self.chain.held_speed_var_mps2(w, self.spread_var[-1])
+
+    @property
+    def aid_noise_var(self) -> float:
+        """Measured wheel/INS consistency noise (the aid's innovation variance), m^2/s^2
+        (:class:`~slip_estimator.core.slip_model.aided_record.ConsistencyNoise`)."""
+        return self._noise.var_mps2
+
+    @property
+    def baseline(self) -> float | None:
+        """The ground's slip measured after the last start from rest (None before one)."""
+        return self.chain.baseline
+
+    @property
+    def spread_var(self) -> list[float]:
+        """Variance of the free residual's change at each step-test scale, m^2/s^2, floored
+        by the last sample's ``reading_var_mps2`` (:func:`~.thresholds.spread_var_mps2`)."""
+        return spread_var_mps2(self.step_test.spread_var, self._reading_var_mps2)
+
+    @property
+    def rim_speed_mps(self) -> float | None:
+        """The rim speed of the last moving wheel sample, m/s (None at rest)."""
+        return self._rim.last_mps
+
+    def body_change_mps(self, w: float, turning: bool = False) -> float:
+        """CUSUM threshold h of a body-side change at rim speed ``w``, m/s
+        (:func:`~.thresholds.body_change_mps` on :attr:`spread_var`)."""
+        return body_change_mps(self.params, self.spread_var, w, turning)

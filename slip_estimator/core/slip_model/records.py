@@ -23,7 +23,9 @@ class ModelSample:
     v_free_mps: float
     """the free forward speed: the filter's, less everything the wheel aid did to it"""
     aid_accel_mps2: float
-    """the along-track acceleration the aid's corrections cause at ``t_ns``, m/s^2"""
+    """the along-track acceleration the aid's corrections cause at ``t_ns``, m/s^2: the free
+    speed's change from a past sample plus that sample's aid acceleration times the elapsed
+    time is the speed change the INS saw without the aid corrections made in between"""
     pitch_std_rad: float
     """the filter's tilt 1-sigma"""
     reading_var_mps2: tuple[float, ...]
