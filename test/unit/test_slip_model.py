@@ -5,7 +5,8 @@ controllers hold the wheel rate while the terrain slows the body (body side), th
 up at an unchanged body speed (wheel side), the rover runs ahead downhill, the commanded speed
 changes at a constant slip, and the INS drifts slowly. A tiny stand-in for the filter applies
 the model's decisions (an anchor sets the speed, an aid pulls it half-way), and the free speed
-is the truth plus an INS random walk that the decisions never touch.
+is the truth plus an INS random walk that the decisions never touch. The two change-detection
+parts (wheel side, body side) are also driven alone, with closed-form expectations.
 """
 from __future__ import annotations
 
@@ -755,3 +756,68 @@ def test_the_rest_offset_its_zero_velocity_updates_leave_is_measured(rest_v_mps,
     for j in range(2):
         clock.rest(int(j * 1e8), -0.02)
     assert clock.rest_offset_mps(0.01) == 0.0  # fewer than three samples: nothing measured
+
+
+def test_a_wheel_side_change_lasts_wheel_change_s_and_continues_from_before_the_rim_moved():
+    """The held slip 0 aids 1.0 m/s for 2 s; the rim steps to 1.5 m/s under a body that keeps
+    1.0 m/s. The discrepancy (0.5 m/s, beyond 0.1 of the rim speed) is a change at the
+    sample WHEEL_CHANGE_S after it began, measured from the aided mean before the step; only
+    once a stop measured the ground are the aid's corrections of the last 1 s taken back."""
+    from slip_estimator.core.slip_model.aided_record import AidedRecord
+    from slip_estimator.core.slip_model.records import ModelSample
+    from slip_estimator.core.slip_model.rim_memory import RimMemory
+    from slip_estimator.core.slip_model.wheel_side import WHEEL_CHANGE_S, WheelSide
+    for baseline in (None, 0.05):
+        side, rim, aided = WheelSide(Params()), RimMemory(), AidedRecord(CHANGE_LOOKBACK_S)
+        for k in range(20):
+            t_ns = round(k * DT_S * 1e9)
+            rim.add(t_ns, 1.0)
+            aided.add(t_ns, 1.0, 1.0, 1.0, 0.0)
+        results = []
+        for k in range(20, 24):
+            t_ns = round(k * DT_S * 1e9)
+            rim.add(t_ns, 1.5)
+            s = ModelSample(t_ns, 1.5, 1.0, 1.0, 0.0, 0.0, (), 0.0)
+            results.append(side.check(s, 1.0, rim, aided, 1e-4, [1e-4, 2.5e-4], baseline))
+        k_change = math.ceil(WHEEL_CHANGE_S / DT_S - 1e-9)  # the first sample that late
+        assert all(d and c is None for d, c in results[:k_change])
+        discrepant, change = results[k_change]
+        assert discrepant and change.side == 'wheel'
+        assert change.anchor.z_mps == pytest.approx(1.0) and not change.anchor.body
+        if baseline is None:
+            assert change.decision is None
+        else:
+            t_ns = round((20 + k_change) * DT_S * 1e9)
+            assert not change.decision.update
+            assert change.decision.take_back_since_ns == t_ns - round(SCALES_S[0] * 1e9)
+
+
+def test_the_body_side_reanchors_once_after_a_gap_and_stays_quiet_for_its_window():
+    """After an IMU gap the first tracked sample re-anchors and opens QUIET_AFTER_GAP_S in
+    which a step of the free residual raises no change; after it the same step does."""
+    from slip_estimator.core.slip_model.aided_record import AidedRecord
+    from slip_estimator.core.slip_model.body_side import QUIET_AFTER_GAP_S, BodySide
+    from slip_estimator.core.slip_model.records import ModelSample
+    from slip_estimator.core.slip_model.step_test import StepTest
+
+    def steps(t0_s: float) -> list:
+        """2 s at the hold, then the body 0.3 m/s slower at a 1.0 m/s rim for 1.5 s, from
+        ``t0_s``."""
+        test, aided, changes = StepTest(1e-4), AidedRecord(CHANGE_LOOKBACK_S), []
+        for k in range(35):
+            t_ns = round((t0_s + k * DT_S) * 1e9)
+            v = 1.0 if k < 20 else 0.7
+            aided.add(t_ns, 1.0, v, v, 0.0)
+            changes.append(side.check(ModelSample(t_ns, 1.0, v, v, 0.0, 0.0, (), 0.0), 1.0,
+                                      False, test, aided, None))
+        return changes
+
+    side = BodySide(Params())
+    side.interrupt()
+    assert side.gap_closed(0) and not side.gap_closed(0)
+    assert side.quiet(round((QUIET_AFTER_GAP_S - 0.1) * 1e9))
+    assert all(c is None for c in steps(0.0))  # the step lies within the window
+    assert not side.quiet(round(QUIET_AFTER_GAP_S * 1e9))
+    changes = [c for c in steps(QUIET_AFTER_GAP_S) if c is not None]
+    assert changes and changes[0].side == 'body' and changes[0].anchor.body
+    assert changes[0].decision.anchor and changes[0].decision.take_back_since_ns is None
