@@ -112,6 +112,9 @@ class SlipChain:
         self.ground: float | None = None
         """the last baseline its start placed within ``ASSUMED_SLIP_STD`` (1-sigma): the
         ground's slip as far as this drive has resolved it (kept across stops)"""
+        self.wheel_changed = False
+        """a wheel-side change was held since the baseline's start (kept across stops): the
+        wheels, not the ground, moved the slip, and the baseline may have been theirs"""
         self.reset()
 
     def reset(self) -> None:
@@ -182,7 +185,7 @@ class SlipChain:
             self.doubted = body_window_s is not None and measured >= -run_ahead.MAX_SLIP
             measured = baseline if baseline is not None else 0.0
             self.assumed = self.assumed or baseline is None
-        if from_rest and self.baseline is not None and \
+        if from_rest and self.baseline is not None and not self.wheel_changed and \
                 (self.baseline - measured) * rest_offset_mps * w > 0.0 and \
                 abs(measured - self.baseline) * abs(w) > math.sqrt(spread_var):
             # The stop's first zero-velocity update put the held slip's speed error into tilt
@@ -204,7 +207,7 @@ class SlipChain:
             if coarse:
                 measured = 0.0
             self.baseline, self.assumed, self.chain_var = measured, coarse, 0.0
-            self.doubted = False
+            self.doubted = self.wheel_changed = False
             self.ins_chain_var = 0.0
             self.baseline_pitch_rad = pitch_rad
             if math.sqrt(start_speed_var) <= ASSUMED_SLIP_STD * abs(w):
@@ -225,6 +228,8 @@ class SlipChain:
         if previous is not None and abs(measured - previous) * abs(w) < h:
             self._run = run
             return previous  # a false alarm: the INS confirms the held slip
+        if body_window_s is None:
+            self.wheel_changed = True
         if previous is not None and body_span_s is not None and \
                 abs(measured - previous) * abs(w) < p.slip_continuity_sigma * math.sqrt(
                     spread_var * max(body_span_s, spread_scale_s) / spread_scale_s):
