@@ -736,6 +736,26 @@ def test_a_start_after_a_rest_left_accelerating_holds_the_ground_on_the_side_it_
     assert start(-0.20, 0.015) == (0.05, 0.05)  # fast: read low, the ground is higher
 
 
+def test_a_start_after_a_wheel_side_change_does_not_hold_the_baseline_the_wheels_set():
+    """Real s5t1 with its wheels spun x3.0 and later x1.4: a start inside the first spin
+    measured 0.67 as its baseline; the spin ended (a wheel-side change back to 0.0 held), and
+    a start after an unsettled rest inside the second read 0.29. The wheels, not the ground,
+    had set that baseline: the reading is the new ground (held at 0.67 the window read 0.68
+    against 0.32). Without the wheel-side change the baseline is held, as on rough ground."""
+    from slip_estimator.core.slip_model.chain import SlipChain
+
+    def second_start(spin_ended):
+        chain = SlipChain(Params())
+        chain.settle(0.67, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+        if spin_ended:
+            chain.settle(0.0, 0.67, 0.5, 0.05 ** 2, 0.05, False, False, False)
+        chain.reset()  # the stop
+        return chain.settle(0.29, None, 0.5, 0.05 ** 2, 0.05, True, False, False,
+                            rest_offset_mps=0.015)
+    assert second_start(spin_ended=True) == 0.29
+    assert second_start(spin_ended=False) == 0.67
+
+
 @pytest.mark.parametrize('rest_v_mps, held', [(-0.02, 0.05), (-0.005, 0.3), (0.0, 0.3)])
 def test_the_rest_offset_its_zero_velocity_updates_leave_is_measured(rest_v_mps, held):
     """A drive measures the ground at 0.05 from rest, stops for 2 s, and starts again reading
