@@ -258,12 +258,9 @@ class SlipChain:
         base_pitch = self.baseline_pitch_rad
         other_slope = base_pitch is not None and \
             abs(pitch_rad - base_pitch) > SLOPE_RAD + _SLOPE_SIGMA * pitch_std_rad
-        # A change the rim made (``rim_spun``) was resolved against the INS's shortest
-        # scale: from a ground measured at rest its own reading adds no measuring span's
-        # drift to what the snap judges (real test17run, wheels x1.4 on the ground read
-        # 0.316, truth 0.31, had snapped back to 0.045). Not from an assumed baseline (a
-        # start in motion): there only the chain's spread keeps a coarse INS's readings
-        # (a 30-Hz consumer robot's rim-spun 0.38 on ground of 0 held, false alarms +1.3 %).
+        # A rim-spun change from a measured ground adds no measuring span's drift to what
+        # the snap judges (test17run wheels x1.4 read 0.316, truth 0.31, snapped to 0.045);
+        # from an assumed one the chain's spread alone keeps a coarse INS's readings.
         snap_var = self.chain_var - spread_var if rim_spun and self.baseline is not None \
             else self.chain_var
         if (baseline is not None and p.slip_baseline == 'snap' and not other_slope
