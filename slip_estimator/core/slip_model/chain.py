@@ -6,13 +6,14 @@ learned 2.5-s spread) to the chain, so the held slip grows less certain from one
 the next until a stop or a return to the ground measured after the last start:
 
 * **baseline.** The first slip after a start from rest is the ground's; a later measurement
-  within the chain's spread of it is that ground again (``slip_baseline = 'snap'``), which
-  ends the chain (measured on the real logs: a chain of INS intervals is worse than the
+  within the chain's spread of it is that ground again (``slip_baseline = 'snap'``), which ends
+  the chain (measured on the real logs: a chain of INS intervals is worse than the
   ZUPT-anchored start). A change the rim made (``rim_spun``) from a measured ground is judged
-  by the chain before it: the INS resolved it at its shortest scale. Not on another slope: gravity along it changes the traction the
-  wheels must give, so the same ground slips differently there (a pitch beyond
-  ``SLOPE_RAD`` from the baseline's, plus ``_SLOPE_SIGMA`` of the attitude's tilt
-  uncertainty: a consumer IMU's pitch wanders by 2 degrees on level ground);
+  by the chain before it: the INS resolved it at its shortest scale. Not on another slope:
+  gravity along it changes the traction the wheels must give, so the same ground slips
+  differently there (a pitch beyond ``SLOPE_RAD`` from the baseline's, plus ``_SLOPE_SIGMA`` of
+  the attitude's tilt uncertainty: a consumer IMU's pitch wanders by 2 degrees on level
+  ground);
 * **false alarm.** A measurement within the change threshold of the previous hold is that
   hold (the INS confirms it);
 * **run-ahead.** One that no slope explains (:mod:`.run_ahead`) is the INS:
