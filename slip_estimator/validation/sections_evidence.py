@@ -286,7 +286,7 @@ def _reading_lines(closures: dict[str, list[dict[str, float]]],
                    readings: dict[str, list[float]]) -> list[str]:
     """The 1.5-s reading error of every source that has one against its real log's."""
     table = []
-    for label, runs in readings.items():
+    for label, runs in sorted(readings.items(), key=lambda item: item[0] in SIM_SOURCES):
         real = SIM_SOURCES[label][2] if label in SIM_SOURCES else ''
         mean = float(np.mean(runs))
         ref = float(np.mean(readings[real])) if real in readings else math.nan
