@@ -117,7 +117,7 @@ class VibrationConfig:
         ``motion_bound``: the same per-sample scatter without its white content at 0 Hz
         (issue 27, deliverable 4): the broadband of both sensors differenced (no velocity or
         angle random walk), a Gauss-Markov accelerometer error of 0.053 (m/s^2)/(m/s) and 1 s
-        (one-sided PSD 0.075 m/s^2/sqrt(Hz) at 0.73 m/s below 0.16 Hz: the real residual
+        (one-sided PSD 0.077 m/s^2/sqrt(Hz) at 0.73 m/s below 0.16 Hz: the real residual
         of the IMU's forward speed against the rims, 0.06-0.08 on both logs below 1 Hz) and
         the tilt wander as the rectified gyro error, 3e-4 (rad/s)/(m/s) over 5 s. The white
         broadband made the stop's tilt closure 3.5-4.6 times the real one

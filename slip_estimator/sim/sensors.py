@@ -3,9 +3,11 @@
 Sensors (noise seed): constant biases, bias random walks, white noise, optional scale factor
 and misalignment, speed-dependent vibration; optionally (:func:`_real_imu_mechanisms`, each
 off by default) Gauss-Markov bias instability, gyro g-sensitivity, a vibration-rectified gyro
-error that makes the integrated tilt wander while driving, and fixed-frequency resonances
-sampled without an anti-alias filter (folded to ``|f - k rate|``); encoder counts quantised at
-``encoder_pulses_per_m`` with a random initial phase; GNSS from truth with white noise.
+error that makes the integrated tilt wander while driving, fixed-frequency resonances
+sampled without an anti-alias filter (folded to ``|f - k rate|``), a differenced broadband
+(no power at 0 Hz) and a motion-bound low-frequency accelerometer error; encoder counts
+quantised at ``encoder_pulses_per_m`` with a random initial phase; GNSS from truth with white
+noise.
 
 The wheel slip truth at the encoder stamps and a 2-D wheel odometry from the measured encoders
 are computed here too. Only the standard library and numpy are imported here.
