@@ -142,6 +142,18 @@ def _notes() -> list[str]:
         'integrates over L has variance 2σ²T(L − T(1 − e^(−L/T)))) is there for IMUs whose '
         'wander exceeds their vibration\'s random walk; the consumer grade uses it as an '
         'assumption.',
+        '- **Motion-bound vibration** (`pathfinder_measured(motion_bound=True)`, the '
+        '"motion-bound" column; not the default). The white broadband of both sensors is a '
+        'velocity and angle random walk that, through the filter, made the simulated tilt '
+        'closure at stops 3.5-4.6 times the real one (`docs/validation.md`, "Tilt closure at '
+        'stops"). This column keeps the same per-sample scatter as a differenced broadband '
+        '(`*_broadband_differenced_*`: no power at 0 Hz), adds a Gauss-Markov accelerometer '
+        'error times the vibration speed (`accel_lowband_mps2_per_mps`, '
+        '`accel_lowband_correlation_s`: 0.053 (m/s^2)/(m/s), 1 s) for the reading error, and '
+        'puts the tilt wander into the rectified gyro error (3e-4 (rad/s)/(m/s), 5 s). It '
+        'matches the closure; the real residual of the IMU\'s speed against the rims is '
+        'white-like at 0.1-4 Hz, which this low-band error is not (`docs/limits.md`, "The '
+        'motion-bound simulated IMU").',
         '- **The reading error** (last statistic row) is what a body-side slip reading '
         'from this IMU errs by: the shipped filter\'s state at every 0.1 s of driving, then '
         'the raw IMU alone for 1.5 s, against the true speed change (RTK on test17run; the '
