@@ -102,3 +102,14 @@ def test_the_motion_bound_grade_keeps_the_scatter_without_white_broadband() -> N
     assert bound.scaled(2.0).accel_lowband_mps2_per_mps == 2.0 * bound.accel_lowband_mps2_per_mps
     with pytest.raises(ValueError):
         VibrationConfig(accel_lowband_correlation_s=0.0)
+
+
+def test_the_accuracy_command_offers_every_simulate_scenario(capsys) -> None:
+    from slip_estimator.accuracy import accuracy_main
+    from slip_estimator.sim.bag import SCENARIOS
+
+    assert SCENARIOS['measured_motion_bound'](0).imu == ImuErrorConfig.pathfinder_measured(True)
+    assert SCENARIOS['measured'](0).imu == ImuErrorConfig.pathfinder_measured()
+    assert accuracy_main(['--families', 'measured,no_such_family', '--seeds', '0']) == 2
+    err = capsys.readouterr().err
+    assert "'no_such_family'" in err and 'measured_motion_bound_no_slip' in err
