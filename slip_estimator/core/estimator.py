@@ -15,11 +15,11 @@ import math
 import numpy as np
 
 from slip_estimator.core import frames, outputs
-from slip_estimator.core.alignment import (AlignmentCollector, AlignmentStart, filter_start,
-                                           recovery_covariance, relevel)
+from slip_estimator.core.alignment import AlignmentCollector, AlignmentStart
 from slip_estimator.core.detectors import ImuRate, StationaryDetector
 from slip_estimator.core.diagnosis import ResidualMonitor
 from slip_estimator.core.filter import ErrorStateFilter
+from slip_estimator.core.filter_start import filter_start, recovery_covariance, relevel
 from slip_estimator.core.history import ForwardSpeedHistory, WheelQueue
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.odometry_guard import OdometryGuard

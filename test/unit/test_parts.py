@@ -522,7 +522,8 @@ def test_relevel_after_a_recovery_takes_the_tilt_from_the_specific_force():
     """A state whose attitude was kept across a long gap (level, heading 1 rad) while the
     rover now climbs at 10 deg: re-levelled to 10 deg pitch, heading and position kept,
     velocity from the rim speed; position variance not shrunk."""
-    from slip_estimator.core.alignment import AlignmentStart, relevel
+    from slip_estimator.core.alignment import AlignmentStart
+    from slip_estimator.core.filter_start import relevel
     from slip_estimator.core.frames import dcm_to_rpy
 
     p = Params()

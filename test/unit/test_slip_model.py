@@ -18,6 +18,7 @@ import pytest
 from slip_estimator.core.params import Params
 from slip_estimator.core.slip import speed_ratio
 from slip_estimator.core.slip_model.model import CHANGE_LOOKBACK_S, Mode, SlipModel
+from slip_estimator.core.slip_model.records import Resolution, SlipReading
 from slip_estimator.core.slip_model.step_test import SCALES_S
 
 DT_S = 0.1
@@ -411,19 +412,20 @@ def test_the_chain_holds_a_measurement_as_baseline_false_alarm_or_new_slip():
     from slip_estimator.core.slip_model.chain import SlipChain
     chain = SlipChain(Params())
     spread = 1e-4
+    fine, coarse = Resolution(spread, 1.0, 0.05), Resolution(0.01, 1.0, 0.05)
     def settle(measured, previous, from_rest=False):
-        return chain.settle(measured, previous, 0.5, spread, 0.05, from_rest, False, False)
+        return chain.settle(SlipReading(measured, previous, 0.5, from_rest=from_rest), fine)
     assert settle(0.08, None, from_rest=True) == 0.08 and chain.baseline == 0.08
     assert settle(0.43, 0.40) == 0.40  # within 0.04 of the hold: a false alarm
     assert settle(0.11, 0.40) == 0.08  # within the chain's spread of the baseline: that ground
     assert chain.chain_var == 0.0
     assert settle(0.30, 0.08) == 0.30  # a change
     assert chain.held_speed_var_mps2(0.5, spread) == pytest.approx(2 * spread)
-    chain.settle(0.5, 0.3, 0.5, spread, 0.05, False, True, True)  # run-ahead, unmeasured
+    chain.settle(SlipReading(0.5, 0.3, 0.5, unmeasured=True, implausible_run_ahead=True), fine)
     assert chain.assumed and chain.held_speed_var_mps2(0.5, spread) == pytest.approx(0.05 ** 2)
     # Changes measured from the assumption add their spread to it (0.1 m/s each over 2.5 s).
-    chain.settle(0.7, 0.3, 0.5, 0.01, 0.05, False, False, False)
-    chain.settle(0.9, 0.7, 0.5, 0.01, 0.05, False, False, False)
+    chain.settle(SlipReading(0.7, 0.3, 0.5), coarse)
+    chain.settle(SlipReading(0.9, 0.7, 0.5), coarse)
     assert chain.assumed and chain.chain_var > 0.015
     assert chain.held_speed_var_mps2(0.5, 0.01) == pytest.approx(chain.chain_var)
 
@@ -438,16 +440,15 @@ def test_a_change_the_rim_made_is_not_snapped_back_by_its_own_measuring_span(rim
     test17run, wheels x1.4 on the ground: read 0.316, truth 0.31, snapped to 0.045). Not
     from an assumed baseline."""
     from slip_estimator.core.slip_model.chain import SlipChain
+    fine, coarse = Resolution(1e-4, 1.0, 0.05), Resolution(0.01, 1.0, 0.05)
     chain = SlipChain(Params())
-    chain.settle(0.05, None, 0.5, 1e-4, 0.05, True, False, False)  # the ground, from rest
-    assert chain.settle(0.30, 0.05, 0.5, 0.01, 0.05, False, False, False,
-                        rim_spun=rim_spun) == held
+    chain.settle(SlipReading(0.05, None, 0.5, from_rest=True), fine)  # the ground, from rest
+    assert chain.settle(SlipReading(0.30, 0.05, 0.5, rim_spun=rim_spun), coarse) == held
     # From an assumed baseline (a start in motion, an INS too coarse to place the ground:
     # zero) only the chain's spread keeps a reading, rim-spun or not.
     chain = SlipChain(Params())
-    chain.settle(0.0, None, 0.5, 0.01, 0.05, False, True, False)  # unmeasured: assumed
-    assert chain.settle(0.30, 0.0, 0.5, 0.01, 0.05, False, False, False,
-                        rim_spun=rim_spun) == 0.0
+    chain.settle(SlipReading(0.0, None, 0.5, unmeasured=True), coarse)  # assumed
+    assert chain.settle(SlipReading(0.30, 0.0, 0.5, rim_spun=rim_spun), coarse) == 0.0
 
 
 def test_the_guard_counts_the_chain_the_ins_alone_read_unless_the_hold_is_resolved_from_the_rim():
@@ -459,12 +460,13 @@ def test_the_guard_counts_the_chain_the_ins_alone_read_unless_the_hold_is_resolv
     chain (a start in motion) the larger of the INS's and the chain's."""
     from slip_estimator.core.slip_model.chain import SlipChain
     ins = 0.05 ** 2
+    span = Resolution(ins, 1.0, 0.05)
 
     def from_ground(measured, rim_spun=False):
         chain = SlipChain(Params())
-        chain.settle(0.3, None, 0.5, 1e-4, 0.05, True, False, False)  # the ground, from rest
-        held = chain.settle(measured, 0.3, 0.5, 0.0025, 0.05, False, False, False,
-                            rim_spun=rim_spun)
+        chain.settle(SlipReading(0.3, None, 0.5, from_rest=True),
+                     Resolution(1e-4, 1.0, 0.05))  # the ground, from rest
+        held = chain.settle(SlipReading(measured, 0.3, 0.5, rim_spun=rim_spun), span)
         return chain, held
 
     assert SlipChain(Params()).guard_var_mps2(ins, None, 0.5) == ins  # nothing chained
@@ -472,7 +474,7 @@ def test_the_guard_counts_the_chain_the_ins_alone_read_unless_the_hold_is_resolv
     assert held == 0.05 and chain.ins_chain_var == pytest.approx(0.0025)
     assert chain.guard_var_mps2(ins, held, 0.5) == pytest.approx(ins + 0.0025)  # 0.025 m/s
     # A false alarm (the INS confirms the hold) grows the chain, not what the guard counts.
-    assert chain.settle(0.06, 0.05, 0.5, 0.0025, 0.05, False, False, False) == 0.05
+    assert chain.settle(SlipReading(0.06, 0.05, 0.5), span) == 0.05
     assert chain.chain_var == pytest.approx(0.005) and chain.ins_chain_var == pytest.approx(
         0.0025)
     chain, held = from_ground(0.05, rim_spun=True)
@@ -481,8 +483,9 @@ def test_the_guard_counts_the_chain_the_ins_alone_read_unless_the_hold_is_resolv
     chain, held = from_ground(0.6)
     assert held == 0.6 and chain.guard_var_mps2(ins, held, 0.5) == ins  # 0.3 m/s: resolved
     chain = SlipChain(Params())
-    chain.settle(0.0, None, 0.5, 0.01, 0.05, False, True, False)  # zero slip, assumed
-    assert chain.settle(0.5, 0.0, 0.5, 0.01, 0.05, False, False, False) == 0.5
+    coarse = Resolution(0.01, 1.0, 0.05)
+    chain.settle(SlipReading(0.0, None, 0.5, unmeasured=True), coarse)  # zero slip, assumed
+    assert chain.settle(SlipReading(0.5, 0.0, 0.5), coarse) == 0.5
     assert chain.assumed and chain.guard_var_mps2(ins, 0.5, 0.5) == ins  # 0.25 m/s: resolved
     assert chain.guard_var_mps2(ins, None, 0.5) == pytest.approx(0.01)  # the larger
 
@@ -531,14 +534,14 @@ def test_a_ratchet_of_drift_sized_body_side_readings_does_not_climb_classes():
     The same reading 1.5 s after the hold is a change of its own; a step to 0.90 (0.42 m/s)
     beats the run's drift and is read."""
     from slip_estimator.core.slip_model.chain import SlipChain
+    span = Resolution(0.05 ** 2, 2.5, 0.05)
     def chain_after(second, gap_s):
         chain = SlipChain(Params())
-        chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
-        first = chain.settle(0.30, 0.06, 0.5, 0.05 ** 2, 0.05, False, False, False,
-                             spread_scale_s=2.5, body_window_s=(10.0, 13.0))
+        chain.settle(SlipReading(0.06, None, 0.5, from_rest=True), Resolution(0.05 ** 2, 1.0, 0.05))
+        first = chain.settle(SlipReading(0.30, 0.06, 0.5, body_window_s=(10.0, 13.0)), span)
         assert first == 0.30
-        return chain.settle(second, 0.30, 0.5, 0.05 ** 2, 0.05, False, False, False,
-                            spread_scale_s=2.5, body_window_s=(13.0 + gap_s, 16.0 + gap_s))
+        return chain.settle(
+            SlipReading(second, 0.30, 0.5, body_window_s=(13.0 + gap_s, 16.0 + gap_s)), span)
     assert chain_after(0.50, 0.1) == 0.06
     assert chain_after(0.50, 1.5) == 0.50
     assert chain_after(0.90, 0.1) == 0.90
@@ -554,12 +557,13 @@ def test_a_measurement_on_another_slope_is_not_snapped_to_the_baseline():
     level ground), is."""
     from slip_estimator.core.slip_model.chain import SlipChain
     deg = math.radians(1.0)
+    span = Resolution(1e-4, 1.0, 0.05)
     def held(pitch_deg, pitch_std_deg=0.0):
         chain = SlipChain(Params())
-        chain.settle(0.08, None, 0.5, 1e-4, 0.05, True, False, False, 0.0)
+        chain.settle(SlipReading(0.08, None, 0.5, from_rest=True), span)
         chain.chain_var = 0.05 ** 2  # a chain of changes: the snap radius is 0.1 m/s
-        return chain.settle(-0.05, 0.30, 0.5, 1e-4, 0.05, False, False, False,
-                            -pitch_deg * deg, pitch_std_deg * deg)
+        return chain.settle(SlipReading(-0.05, 0.30, 0.5, pitch_rad=-pitch_deg * deg,
+                                        pitch_std_rad=pitch_std_deg * deg), span)
     assert held(5.0) == -0.05
     assert held(3.0) == 0.08 and held(5.0, 2.0) == 0.08
 
@@ -573,12 +577,14 @@ def test_holds_after_a_rejected_run_ahead_are_held_as_read_and_doubted():
     0.34 at the baseline's pitch is that return: no doubt; on the rise it stays."""
     from slip_estimator.core.slip_model.chain import SlipChain
     rise = math.radians(6.0)
+    span = Resolution(0.05 ** 2, 1.0, 0.05)
     def settle(chain, measured, previous, pitch_rad, run_ahead=False, t_s=0.0):
-        return chain.settle(measured, previous, 0.5, 0.05 ** 2, 0.05, False, False,
-                            run_ahead, pitch_rad, body_window_s=(t_s, t_s + 3.0))
+        return chain.settle(SlipReading(measured, previous, 0.5, implausible_run_ahead=run_ahead,
+                                        pitch_rad=pitch_rad, body_window_s=(t_s, t_s + 3.0)),
+                            span)
     def rejected():
         chain = SlipChain(Params())
-        chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+        chain.settle(SlipReading(0.06, None, 0.5, from_rest=True), span)
         assert settle(chain, -0.22, 0.06, 0.0, True, 10.0) == 0.06
         return chain
     chain = rejected()
@@ -591,14 +597,14 @@ def test_holds_after_a_rejected_run_ahead_are_held_as_read_and_doubted():
     assert not chain.doubted
     for pitch_rad, doubted in ((0.0, False), (rise, True)):
         chain = SlipChain(Params())
-        chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+        chain.settle(SlipReading(0.06, None, 0.5, from_rest=True), span)
         assert settle(chain, 0.34, 0.06, rise, t_s=10.0) == 0.34 and not chain.doubted
         assert settle(chain, -0.22, 0.34, pitch_rad, True, 20.0) == 0.06
         assert chain.doubted == doubted
     # Beyond MAX_SLIP (the body at twice the rim speed: an IMU spike, not ground) the
     # rejection is certain: nothing after it is doubted.
     chain = SlipChain(Params())
-    chain.settle(0.06, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+    chain.settle(SlipReading(0.06, None, 0.5, from_rest=True), span)
     assert settle(chain, -0.8, 0.06, rise, True, 10.0) == 0.06 and not chain.doubted
 
 
@@ -612,13 +618,15 @@ def test_only_a_body_side_rejected_run_ahead_doubts_the_holds_after_it():
     (to 0.52, the x2.0 window) is not doubted. The same -0.20 read on the body side (a steady
     rim, the INS's word alone: the body may have run ahead) doubts the 0.52 after it."""
     from slip_estimator.core.slip_model.chain import SlipChain
+    span = Resolution(0.05 ** 2, 1.0, 0.05)
     def after(body_window_s):
         chain = SlipChain(Params())
-        chain.settle(0.045, None, 0.73, 0.05 ** 2, 0.05, True, False, False)
-        assert chain.settle(-0.20, 0.045, 0.73, 0.05 ** 2, 0.05, False, False, True,
-                            math.radians(-1.0), body_window_s=body_window_s) == 0.045
+        chain.settle(SlipReading(0.045, None, 0.73, from_rest=True), span)
+        assert chain.settle(SlipReading(-0.20, 0.045, 0.73, implausible_run_ahead=True,
+                                        pitch_rad=math.radians(-1.0),
+                                        body_window_s=body_window_s), span) == 0.045
         doubted = chain.doubted
-        assert chain.settle(0.52, 0.045, 0.73, 0.05 ** 2, 0.05, False, False, False) == 0.52
+        assert chain.settle(SlipReading(0.52, 0.045, 0.73), span) == 0.52
         return doubted, chain.doubted
     assert after(None) == (False, False)
     assert after((10.0, 13.0)) == (True, True)
@@ -660,8 +668,8 @@ def test_a_body_side_change_within_the_ins_drift_over_its_span_is_not_resolved()
     from slip_estimator.core.slip_model.chain import SlipChain
     def held(measured, spread, body_span_s=4.0):
         chain = SlipChain(Params())  # no baseline (a start in motion): nothing to snap to
-        return chain.settle(measured, 0.0, 1.0, spread, 0.1, False, False, False,
-                            body_span_s=body_span_s, spread_scale_s=2.5)
+        return chain.settle(SlipReading(measured, 0.0, 1.0, body_span_s=body_span_s),
+                            Resolution(spread, 2.5, 0.1))
     assert held(0.35, 0.04) == 0.0
     assert held(0.6, 0.04) == 0.6
     assert held(0.35, 4e-4) == 0.35
@@ -676,12 +684,12 @@ def test_a_start_from_rest_on_a_coarse_ins_takes_the_wheels_as_the_ground():
     measures the ground; so does a model without the filter's prediction."""
     from slip_estimator.core.slip_model.chain import SlipChain, coarse_ins
     assert coarse_ins(0.09, 0.8) and not coarse_ins(9e-4, 0.8)
-    chain = SlipChain(Params())
-    assert chain.settle(-0.34, None, 0.8, 0.09, 0.08, True, False, False,
-                        start_speed_var=0.09) == 0.0
+    chain, span = SlipChain(Params()), Resolution(0.09, 1.0, 0.08)
+    assert chain.settle(SlipReading(-0.34, None, 0.8, from_rest=True, start_speed_var_mps2=0.09),
+                        span) == 0.0
     assert chain.baseline == 0.0 and chain.assumed
     assert chain.held_speed_var_mps2(0.8, 0.09) == pytest.approx((0.1 * 0.8) ** 2)
-    assert chain.settle(-0.34, None, 0.8, 0.09, 0.08, True, False, False) == -0.34
+    assert chain.settle(SlipReading(-0.34, None, 0.8, from_rest=True), span) == -0.34
     assert not chain.assumed
     model = SlipModel(Params())
     for k in range(40):  # a start without the filter's prediction measures the ground
@@ -697,15 +705,16 @@ def test_a_start_from_rest_resolves_the_ground_only_within_the_assumed_slip_sigm
     (0.3 m/s) leaves it too."""
     from slip_estimator.core.slip_model.chain import SlipChain
     chain = SlipChain(Params())
+    def start(measured, speed_std_mps):
+        return chain.settle(SlipReading(measured, None, 0.8, from_rest=True,
+                                        start_speed_var_mps2=speed_std_mps ** 2),
+                            Resolution(0.09, 1.0, 0.08))
     assert chain.ground is None
-    assert chain.settle(0.05, None, 0.8, 0.09, 0.08, True, False, False,
-                        start_speed_var=0.06 ** 2) == 0.05
+    assert start(0.05, 0.06) == 0.05
     assert chain.ground == 0.05
-    assert chain.settle(0.09, None, 0.8, 0.09, 0.08, True, False, False,
-                        start_speed_var=0.1 ** 2) == 0.09
+    assert start(0.09, 0.1) == 0.09
     assert chain.baseline == 0.09 and not chain.assumed and chain.ground == 0.05
-    assert chain.settle(0.3, None, 0.8, 0.09, 0.08, True, False, False,
-                        start_speed_var=0.3 ** 2) == 0.0
+    assert start(0.3, 0.3) == 0.0
     assert chain.assumed and chain.ground == 0.05
 
 
@@ -746,11 +755,13 @@ def test_a_start_after_a_rest_left_accelerating_holds_the_ground_on_the_side_it_
     departure within the spread (0.12: 0.035 m/s)."""
     from slip_estimator.core.slip_model.chain import SlipChain
 
+    span = Resolution(0.05 ** 2, 1.0, 0.05)
+
     def start(measured, offset_mps):
         chain = SlipChain(Params())
-        chain.settle(0.05, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
-        return chain.settle(measured, None, 0.5, 0.05 ** 2, 0.05, True, False, False,
-                            rest_offset_mps=offset_mps), chain.baseline
+        chain.settle(SlipReading(0.05, None, 0.5, from_rest=True), span)
+        return chain.settle(SlipReading(measured, None, 0.5, from_rest=True,
+                                        rest_offset_mps=offset_mps), span), chain.baseline
     assert start(0.30, -0.015) == (0.05, 0.05)
     assert start(0.30, 0.015) == (0.30, 0.30)
     assert start(0.30, 0.0) == (0.30, 0.30)
@@ -766,14 +777,16 @@ def test_a_start_after_a_wheel_side_change_does_not_hold_the_baseline_the_wheels
     against 0.32). Without the wheel-side change the baseline is held, as on rough ground."""
     from slip_estimator.core.slip_model.chain import SlipChain
 
+    span = Resolution(0.05 ** 2, 1.0, 0.05)
+
     def second_start(spin_ended):
         chain = SlipChain(Params())
-        chain.settle(0.67, None, 0.5, 0.05 ** 2, 0.05, True, False, False)
+        chain.settle(SlipReading(0.67, None, 0.5, from_rest=True), span)
         if spin_ended:
-            chain.settle(0.0, 0.67, 0.5, 0.05 ** 2, 0.05, False, False, False)
+            chain.settle(SlipReading(0.0, 0.67, 0.5), span)
         chain.reset()  # the stop
-        return chain.settle(0.29, None, 0.5, 0.05 ** 2, 0.05, True, False, False,
-                            rest_offset_mps=0.015)
+        return chain.settle(SlipReading(0.29, None, 0.5, from_rest=True, rest_offset_mps=0.015),
+                            span)
     assert second_start(spin_ended=True) == 0.29
     assert second_start(spin_ended=False) == 0.67
 

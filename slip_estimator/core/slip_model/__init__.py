@@ -57,6 +57,7 @@ Its parts, in the order a wheel sample meets them
 * :mod:`.thresholds` -- the change thresholds;
 * :mod:`.aided_record` -- the recent aided samples: a change's continuity anchor and the
   wheel/INS consistency noise;
-* :mod:`.records` -- the sample's inputs and a detected change, as the parts exchange them;
+* :mod:`.records` -- the sample's inputs, a detected change and a finished reading, as the
+  parts exchange them;
 * :mod:`.aid_decision` -- :class:`~.aid_decision.AidDecision`, what the filter is told.
 """

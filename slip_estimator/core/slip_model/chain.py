@@ -44,6 +44,7 @@ import math
 
 from slip_estimator.core.params import Params
 from slip_estimator.core.slip_model import run_ahead
+from slip_estimator.core.slip_model.records import Resolution, SlipReading
 
 _COARSE_INS_FRACTION = 0.15
 """An INS whose speed over a measurement span scatters by more than this fraction of the rim
@@ -133,37 +134,18 @@ class SlipChain:
         self._body_end_s: float | None = None  # the end of the last body-side measurement
         self.doubted = False  # a run-ahead was rejected since the last anchor (REJECTED_DOUBT)
 
-    def settle(self, measured: float, previous: float | None, w: float, spread_var: float,
-               wheel_change_mps: float, from_rest: bool, unmeasured: bool,
-               implausible_run_ahead: bool, pitch_rad: float = 0.0,
-               pitch_std_rad: float = 0.0, body_span_s: float | None = None,
-               spread_scale_s: float = 1.0, start_speed_var: float = 0.0,
-               body_window_s: tuple[float, float] | None = None,
-               rim_spun: bool = False, rest_offset_mps: float = 0.0) -> float:
-        """The slip to hold after a measurement of ``measured`` at rim speed ``w`` and pitch
-        ``pitch_rad`` (1-sigma ``pitch_std_rad``).
-
-        previous : the hold before the change (None after a start).
-        spread_var : the INS's learned speed-change variance over a measuring span, m^2/s^2.
-        wheel_change_mps : the wheel-side change threshold at ``w``.
-        from_rest : the measurement started from a ZUPT-anchored stop (a new baseline).
-        unmeasured : the INS was re-initialised from the rim (zero slip assumed).
-        implausible_run_ahead : a run-ahead no slope explains was measured.
-        body_span_s : for a body-side change, the time its free INS integrated over, s.
-        spread_scale_s : the span ``spread_var`` refers to, s.
-        start_speed_var : for a start from rest, the filter's forward-speed variance at the
-            end of its measurement, m^2/s^2: too coarse to place the slip within the low class
-            (:func:`coarse_ins`), zero is the baseline; within ``ASSUMED_SLIP_STD`` of the rim
-            speed, the baseline is also the resolved ``ground``.
-        body_window_s : for any body-side change, (its continuity anchor, its end), s.
-        rim_spun : the rim stepped beyond what the INS misses and the body did not follow
-            (:func:`~.settling.rim_spun`): a new level held adds nothing to ``ins_chain_var``.
-        rest_offset_mps : for a start from rest, the forward speed the rest's zero-velocity
-            updates left (:meth:`~.stop_clock.StopClock.rest_offset_mps`, 0 where none): the
-            start's free INS integrates that acceleration, and its speed errs to the offset's
-            side by an amount nothing measured; the baseline before it, where it lies on the
-            side the error hides, is held.
-        """
+    def settle(self, reading: SlipReading, resolution: Resolution) -> float:
+        """The slip to hold after ``reading``, judged against what the INS and the wheels
+        resolve at its rim speed (``resolution``)."""
+        # The reading's facts by the names the rules below use.
+        measured, previous, w = reading.slip, reading.previous, reading.w_mps
+        spread_var, spread_scale_s = resolution.spread_var_mps2, resolution.spread_span_s
+        wheel_change_mps, from_rest = resolution.wheel_change_mps, reading.from_rest
+        unmeasured, implausible_run_ahead = reading.unmeasured, reading.implausible_run_ahead
+        pitch_rad, pitch_std_rad = reading.pitch_rad, reading.pitch_std_rad
+        body_span_s, body_window_s = reading.body_span_s, reading.body_window_s
+        start_speed_var, rim_spun = reading.start_speed_var_mps2, reading.rim_spun
+        rest_offset_mps = reading.rest_offset_mps
         p = self.params
         if unmeasured:
             self.assumed = True

@@ -2,7 +2,8 @@
 the chain decides (baseline, false alarm, run-ahead, the rest offset: :class:`~.chain.SlipChain`),
 with what the measurement itself knows of it: a body-side reading still drifting at its
 timeout, the span its free INS integrated, and whether a wheel-side change was the wheels'
-(:func:`rim_spun`). Speeds in m/s, variances in m^2/s^2. Only the standard library is used.
+(:func:`rim_spun`): the :class:`~.records.SlipReading` it hands the chain. Speeds in m/s,
+variances in m^2/s^2. Only the standard library is used.
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from slip_estimator.core.slip import speed_ratio
 from slip_estimator.core.slip_model.aided_record import Anchor
 from slip_estimator.core.slip_model.chain import RESOLVED_SIGMAS, SlipChain
 from slip_estimator.core.slip_model.measurement import SlipMeasurement
-from slip_estimator.core.slip_model.records import ModelSample
+from slip_estimator.core.slip_model.records import ModelSample, Resolution, SlipReading
 from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
 from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.slip_model.thresholds import predicted_coarse, wheel_change_mps
@@ -45,13 +46,16 @@ def settle(s: ModelSample, measurement: SlipMeasurement, chain: SlipChain,
                                 spread_var_mps2[-1], SCALES_S[-1])
     if drifting and previous is not None:
         return previous  # INS drift, not a change: the hold stays
-    return chain.settle(
-        measured, previous, w, spread_var_mps2[-1], wheel_change_mps(p, w), from_rest,
-        unmeasured, not from_rest and run_ahead.implausible(measured), run_ahead.pitch_rad,
-        s.pitch_std_rad, body_span_s, SCALES_S[-1], s.speed_var_mps2, body_window_s,
-        anchor is not None and not anchor.body and rim_spun(anchor, measured, w, previous,
-                                                            spread_var_mps2),
-        rest_offset_mps if from_rest else 0.0)
+    reading = SlipReading(
+        measured, previous, w, from_rest=from_rest, unmeasured=unmeasured,
+        implausible_run_ahead=not from_rest and run_ahead.implausible(measured),
+        pitch_rad=run_ahead.pitch_rad, pitch_std_rad=s.pitch_std_rad, body_span_s=body_span_s,
+        start_speed_var_mps2=s.speed_var_mps2, body_window_s=body_window_s,
+        rim_spun=anchor is not None and not anchor.body and rim_spun(anchor, measured, w,
+                                                                     previous, spread_var_mps2),
+        rest_offset_mps=rest_offset_mps if from_rest else 0.0)
+    resolution = Resolution(spread_var_mps2[-1], SCALES_S[-1], wheel_change_mps(p, w))
+    return chain.settle(reading, resolution)
 
 
 def rim_spun(anchor: Anchor, measured: float, w: float, previous: float | None,
