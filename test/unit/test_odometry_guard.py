@@ -67,7 +67,8 @@ def test_never_fallen_back_publishes_the_fused_solution_itself():
     odo = _odometry(1.0, (3.0, 4.0, 0.5), 0.3)
     assert guard.publish(odo) is odo
     assert guard.figures() == ({'odometry_fallback': False, 'odometry_fallback_share': 0.0,
-                                'odometry_ins_speed_error_mps': pytest.approx(0.01)}, None)
+                                'odometry_ins_speed_error_mps': pytest.approx(0.01),
+                                'odometry_fallback_reason': 'none'}, None)
 
 
 def test_fallback_advances_at_the_rim_speed_along_the_heading_then_resumes_without_a_jump():
@@ -181,3 +182,61 @@ def test_a_consumer_imu_false_alarm_falls_back_and_is_named_in_the_health_report
     assert health.values['odometry_fallback'] is True
     assert 'odometry: wheels + gyro fallback' in health.message
     assert health.level < 2
+
+
+def test_a_hold_on_an_assumed_slip_falls_back_and_is_named():
+    """A start in motion assumes zero slip (the rim speed); a change the INS read from there
+    (spread 0.05 m/s over a measuring span) to a hold of 0.3 at 0.4 m/s puts the body 0.12
+    m/s from the rim, within 3.5 sigmas (0.175): the guard counts the assumption's 0.1 of the
+    rim speed too, sqrt(0.05^2 + 0.04^2) = 0.064 m/s against the coarse-INS bound of 0.06
+    (0.15 x 0.4): a fallback, named 'assumed_hold'. Without the assumption (the INS alone,
+    0.05 m/s) it would not fall back. The same hold measured from a stop (nothing assumed)
+    counts the INS's spread and the change's, 0.0707 m/s, and is not named so; a hold back at
+    the assumed slip, and one beyond 3.5 sigmas (0.5: 0.2 m/s), judge the INS alone."""
+    from slip_estimator.core.params import Params
+    from slip_estimator.core.slip_model.chain import SlipChain
+    ins, w = 0.05 ** 2, 0.4
+
+    def chained(start_from_rest: bool) -> tuple[SlipChain, float]:
+        chain = SlipChain(Params())
+        if start_from_rest:
+            chain.settle(0.0, None, w, 1e-4, 0.05, True, False, False)  # measured at a stop
+        else:
+            chain.settle(0.0, None, w, 0.0, 0.05, False, True, False)  # zero slip, assumed
+        return chain, chain.settle(0.3, 0.0, w, ins, 0.05, False, False, False)
+
+    chain, held = chained(False)
+    assert chain.assumed and held == 0.3 and chain.ins_chain_var == pytest.approx(ins)
+    assert chain.assumed_hold(held, ins, w)
+    var = chain.guard_var_mps2(ins, held, w)
+    assert var == pytest.approx(ins + (0.1 * w) ** 2)
+    d = decide(_slip(w, (1.0 - held) * w, 3), var, False, 3.5, assumed_hold=True)
+    assert d.fallback and d.reason == 'assumed_hold'
+    assert not decide(_slip(w, (1.0 - held) * w, 3), ins, False, 3.5).fallback
+    guard = OdometryGuard()
+    guard.wheel(d)
+    values, note = guard.figures()
+    assert values['odometry_fallback_reason'] == 'assumed_hold'
+    assert note is not None and 'a slip no stop measured' in note
+    assert not chain.assumed_hold(0.0, ins, w)  # back at the assumed slip
+    assert chain.guard_var_mps2(ins, 0.0, w) == pytest.approx(ins)
+    assert not chain.assumed_hold(0.5, ins, w)  # 0.2 m/s: resolved
+    assert chain.guard_var_mps2(ins, 0.5, w) == pytest.approx(ins)
+    rest, held = chained(True)
+    assert not rest.assumed and held == 0.3 and not rest.assumed_hold(held, ins, w)
+    assert rest.guard_var_mps2(ins, held, w) == pytest.approx(2 * ins)
+    d = decide(_slip(w, (1.0 - held) * w, 3), 2 * ins, False, 3.5)
+    assert d.fallback and d.reason == 'coarse_ins'
+
+
+def test_the_fallback_reason_names_a_hold_through_a_stop():
+    """A fallback that lasted a measuring span holds through still wheels: named
+    'held_through_stop' there, 'coarse_ins' before; 'none' without a fallback."""
+    guard = OdometryGuard()
+    coarse = decide(_slip(1.0, 0.0, 4), 0.5 ** 2, False, 3.5)
+    guard.wheel(coarse)
+    assert guard.figures()[0]['odometry_fallback_reason'] == 'coarse_ins'
+    guard.wheel(decide(SlipEstimate(10 * NS, 0.0, 0.1, 0, 0.0, 0.1, 0.0), 0.5 ** 2, False,
+                       3.5))
+    assert guard.figures()[0]['odometry_fallback_reason'] == 'held_through_stop'
+    assert decide(_slip(1.0, 0.98), 0.01 ** 2, False, 3.5).reason == 'none'

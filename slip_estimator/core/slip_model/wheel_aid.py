@@ -135,11 +135,12 @@ class WheelAid:
         chain = model.chain
         anchored = not chain.assumed and chain.chain_var == 0.0
         ground = chain.ground if self.held_slip is not None else None
-        return decide(est, chain.guard_var_mps2(ins_speed_error_var(model.spread_var, SCALES_S),
-                                                self.held_slip, est.wheel_speed_mps), anchored,
+        ins_var = ins_speed_error_var(model.spread_var, SCALES_S)
+        w = est.wheel_speed_mps
+        return decide(est, chain.guard_var_mps2(ins_var, self.held_slip, w), anchored,
                       self._resolving_sigmas, ground
                       if anchored and abs(ground or 0.0) <= ASSUMED_SLIP_STD else None,
-                      self._rim_steady)
+                      self._rim_steady, chain.assumed_hold(self.held_slip, ins_var, w))
 
     def decide(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate,
                C_b_n: np.ndarray, turning: bool, tilt_std_rad: float = 0.0,
