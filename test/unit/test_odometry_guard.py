@@ -195,15 +195,16 @@ def test_a_hold_on_an_assumed_slip_falls_back_and_is_named():
     the assumed slip, and one beyond 3.5 sigmas (0.5: 0.2 m/s), judge the INS alone."""
     from slip_estimator.core.params import Params
     from slip_estimator.core.slip_model.chain import SlipChain
+    from slip_estimator.core.slip_model.records import Resolution, SlipReading
     ins, w = 0.05 ** 2, 0.4
 
     def chained(start_from_rest: bool) -> tuple[SlipChain, float]:
         chain = SlipChain(Params())
-        if start_from_rest:
-            chain.settle(0.0, None, w, 1e-4, 0.05, True, False, False)  # measured at a stop
-        else:
-            chain.settle(0.0, None, w, 0.0, 0.05, False, True, False)  # zero slip, assumed
-        return chain, chain.settle(0.3, 0.0, w, ins, 0.05, False, False, False)
+        if start_from_rest:  # measured at a stop
+            chain.settle(SlipReading(0.0, None, w, from_rest=True), Resolution(1e-4, 1.0, 0.05))
+        else:  # zero slip, assumed
+            chain.settle(SlipReading(0.0, None, w, unmeasured=True), Resolution(0.0, 1.0, 0.05))
+        return chain, chain.settle(SlipReading(0.3, 0.0, w), Resolution(ins, 1.0, 0.05))
 
     chain, held = chained(False)
     assert chain.assumed and held == 0.3 and chain.ins_chain_var == pytest.approx(ins)
