@@ -134,9 +134,17 @@ class TerrainConfig:
     rocking_rad_per_mps : amplitude of each harmonic per m/s of body speed, rad/(m/s).
     rocking_pivot_depth_m : depth of the rocking axis below base_link, m: base_link (and the
         IMU) swing about it, so the accelerometer also senses the swing's linear acceleration.
+    surge_harmonics : fore-aft surge of the chassis on its tyres and suspension, as multiples
+        of the wheel rotation rate: base_link (and the IMU) oscillates along its forward axis
+        about the path the wheels follow, sum over harmonics m of b_m |v| sin(m phi + phase_m)
+        (phi the wheel rotation angle), real motion the accelerometer senses and the rims do
+        not, with zero mean displacement (a stop does not close on it).
+    surge_m_per_mps : displacement amplitude of each surge harmonic per m/s of body speed,
+        m/(m/s); at a steady speed v its displacement RMS is v sqrt(sum b_m^2 / 2) and its
+        acceleration amplitude b_m v (m v / r)^2.
 
-    The rocking defaults to off (every existing drive keeps its truth); it draws from its own
-    stream of the truth seed.
+    The rocking and the surge default to off (every existing drive keeps its truth); each
+    draws from its own stream of the truth seed.
     """
 
     hills: tuple[HillSpec, ...] = ()
@@ -146,17 +154,29 @@ class TerrainConfig:
     rocking_harmonics: tuple[float, ...] = ()
     rocking_rad_per_mps: tuple[float, ...] = ()
     rocking_pivot_depth_m: float = 0.0
+    surge_harmonics: tuple[float, ...] = ()
+    surge_m_per_mps: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         if len(self.rocking_harmonics) != len(self.rocking_rad_per_mps):
             raise ValueError('terrain: one rocking amplitude per rocking harmonic')
+        if len(self.surge_harmonics) != len(self.surge_m_per_mps):
+            raise ValueError('terrain: one surge amplitude per surge harmonic')
 
     @classmethod
-    def pathfinder_measured(cls) -> TerrainConfig:
+    def pathfinder_measured(cls, surge: bool = False) -> TerrainConfig:
         """The default undulation with the chassis rocking measured on the real Pathfinder
         (test17run at 0.73 m/s: roll and pitch 0.3-0.7 deg 1-sigma at 1-2 Hz, gyro 0.07-0.1
         rad/s below 8 Hz; ``python -m slip_estimator.validation.sim_vs_real_page``), about an
-        axis 0.3 m below base_link."""
+        axis 0.3 m below base_link.
+
+        ``surge``: also the fore-aft surge fitted to the real logs' forward residual against
+        the rims at 1-4 Hz (issue 27, deliverable 4; ``docs/limits.md``, "The chassis
+        surge"): twice and three times the wheel rotation rate, 2.7 and 2.2 mm per m/s
+        (at 0.73 m/s 1.9 and 2.9 Hz, 0.25 and 0.54 m/s^2, 0.023 m/s RMS)."""
+        if surge:
+            return dataclasses.replace(cls.pathfinder_measured(), surge_harmonics=(2.0, 3.0),
+                                       surge_m_per_mps=(0.0027, 0.0022))
         return cls(rocking_harmonics=(1.0, 2.0), rocking_rad_per_mps=(0.02, 0.016),
                    rocking_pivot_depth_m=0.3)
 

@@ -13,7 +13,9 @@ Truth (all on a flat local tangent plane, ENU axes at the start = ROS ``odom``):
    in the terrain tangent plane, and the base_link velocity is (v, 0, 0) in FLU. Optional
    chassis rocking (``TerrainConfig.rocking_harmonics``, off by default) adds roll and pitch
    about that attitude, and with ``rocking_pivot_depth_m`` the swing of base_link about an
-   axis below it to the position and velocity.
+   axis below it to the position and velocity; an optional fore-aft surge
+   (``TerrainConfig.surge_harmonics``) moves base_link along its forward axis about the path
+   (position and velocity; the rims keep the path's speed).
 4. IMU (REP-145, instantaneous values at the sample time): with central differences on the
    fine grid, ``omega_eb_b`` from the DCM, ``a_eb_o`` from the velocity, then
    ``omega_ib_b = omega_eb_b + C_o_b omega_ie_o`` and
@@ -266,6 +268,18 @@ def _rocking(cfg: ScenarioConfig, v: np.ndarray, h: float) -> tuple[np.ndarray, 
     return d_roll, d_pitch
 
 
+def _surge(cfg: ScenarioConfig, v: np.ndarray, h: float) -> np.ndarray:
+    """Fore-aft displacement (m) of the chassis surge (``TerrainConfig.surge_harmonics``) on
+    the fine grid: sum over harmonics m of b_m |v| sin(m phi + phase_m), phi as the rocking's."""
+    terr = cfg.terrain
+    rng = np.random.default_rng([cfg.truth_seed, 2])  # not the rocking's stream
+    phi = cumtrapz(np.abs(v) / cfg.rover.wheel_radius_m, h)
+    x = np.zeros_like(v)
+    for mult, amp in zip(terr.surge_harmonics, terr.surge_m_per_mps):
+        x += amp * np.abs(v) * np.sin(mult * phi + rng.uniform(0.0, 2.0 * math.pi))
+    return x
+
+
 @dataclass(frozen=True)
 class _Truth:
     """Truth on the fine grid (module docstring, steps 1-5); odom is ENU at the start."""
@@ -312,6 +326,10 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
             swing = (C[:, :, 2] - C_path[:, :, 2]) * cfg.terrain.rocking_pivot_depth_m
             p_o = p_o + swing
             v_o = v_o + central_diff(swing, h)
+    if cfg.terrain.surge_harmonics:  # base_link surges along its forward axis, the rims do not
+        surge = _surge(cfg, v, h)[:, None] * C[:, :, 0]
+        p_o = p_o + surge
+        v_o = v_o + central_diff(surge, h)
     omega_eb_b = np.zeros((len(t), 3))
     omega_eb_b[1:-1] = vee_rel(C[:-2], C[2:]) / (2.0 * h)
     omega_eb_b[0] = omega_eb_b[1]

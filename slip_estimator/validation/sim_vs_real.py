@@ -16,7 +16,11 @@ computed differently:
   integrated tilt across the drive against accelerometer levelling at the rest after it;
 * attitude motion: the spread of the tilt levelled from 1-s means of the specific force while
   driving (the ground's roll and pitch, plus the along-track acceleration the level reading
-  cannot tell from tilt: the same on both sources).
+  cannot tell from tilt: the same on both sources);
+* the forward residual against the rims: the spectral density of the acceleration by which
+  the IMU-alone forward speed departs from the rim speed while driving
+  (:func:`forward_residual_asd`), below 1 Hz (the accelerometer's low-band error) and at
+  1-4 Hz (there also body motion the rims do not see, a surge of the chassis).
 
 :func:`compare` runs them on the real logs and on simulated drives shaped like test17run
 (:func:`slip_estimator.sim.drives.straight_scenario`) for several IMU grades and seeds, and
@@ -45,6 +49,8 @@ READING_SPAN_S = 1.5
 """Span of the oracle's reading (:data:`imu_floor.BOUND_SPANS_S`' middle one), s."""
 REST_S = 12.0
 """Longest part of the rest after the drive used for the rest statistics, s."""
+RESIDUAL_BANDS_HZ = ((0.125, 1.0), (1.0, 4.0))
+"""Bands of :func:`forward_residual_asd` in the table, Hz."""
 
 
 def allan_deviation(x: np.ndarray, dt_s: float, tau_s: float) -> float:
@@ -108,6 +114,46 @@ def reading_error_mps(params: Any, data: Any, v_true_mps: np.ndarray,
     return float(np.sqrt(np.mean(errors ** 2))) if len(errors) else math.nan
 
 
+def forward_residual_asd(data: Any, bands_hz: Sequence[tuple[float, float]] = RESIDUAL_BANDS_HZ,
+                         grid_s: float = 0.02, trend_s: float = 10.0, segment_s: float = 8.0
+                         ) -> list[float]:
+    """Spectral density (m/s^2/sqrt(Hz), the root of the mean one-sided PSD over each band)
+    of the acceleration by which the IMU-alone forward speed departs from the mean rim speed
+    while driving (rims above 0.3 m/s). The forward speed integrates f_x less gravity along
+    the pitch the gyro integrates from the levelled rest before the drive; both speeds on a
+    ``grid_s`` grid as 0.1-s means (the rims' quantisation), their difference less its
+    ``trend_s`` moving mean, differentiated, Hann-windowed ``segment_s`` segments within the
+    driving stretches (Welch, half overlap). NaN where no segment fits."""
+    t = data.imu_ns * 1e-9
+    rest = t < motion_interval(data)[0] - 0.5
+    f0 = data.f_ib_b[rest].mean(axis=0)
+    dt = np.gradient(t)
+    rate_y = data.omega_ib_b[:, 1] - data.omega_ib_b[rest, 1].mean()
+    pitch = math.asin(f0[0] / float(np.linalg.norm(f0))) + np.cumsum(rate_y * dt)
+    u = np.cumsum((data.f_ib_b[:, 0] - float(np.linalg.norm(f0)) * np.sin(pitch)) * dt)
+    tg = np.arange(t[0], t[-1], grid_s)
+    box = np.ones(max(1, int(round(0.1 / grid_s))))
+    box /= len(box)
+    u_g = np.convolve(np.interp(tg, t, u), box, 'same')
+    rim_g = np.convolve(np.interp(tg, data.wheel_ns * 1e-9, data.rim_mps.mean(axis=1)), box,
+                        'same')
+    d = u_g - rim_g
+    d -= np.convolve(d, np.ones(int(round(trend_s / grid_s))) / round(trend_s / grid_s), 'same')
+    n = int(round(segment_s / grid_s))
+    win = np.hanning(n)
+    psd, count = np.zeros(n // 2 + 1), 0
+    idx = np.flatnonzero(rim_g > 0.3)
+    for run in np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1):
+        acc = np.gradient(d[run], grid_s)
+        for j in range(0, len(acc) - n, n // 2):
+            y = (acc[j:j + n] - acc[j:j + n].mean()) * win
+            psd += np.abs(np.fft.rfft(y)) ** 2 * 2.0 * grid_s / (win ** 2).sum()
+            count += 1
+    freq = np.fft.rfftfreq(n, grid_s)
+    return [float(np.sqrt(psd[(freq >= lo) & (freq < hi)].mean() / count)) if count
+            else math.nan for lo, hi in bands_hz]
+
+
 def imu_statistics(data: Any, params: Any = None, v_true_mps: np.ndarray | None = None
                    ) -> dict[str, float]:
     """The statistics of the module docstring for one ``streams.SensorData`` that rests, drives
@@ -151,6 +197,8 @@ def imu_statistics(data: Any, params: Any = None, v_true_mps: np.ndarray | None 
     closure = tilt_closure_between(data, t_start, t_end)
     out['pitch_wander_deg'] = closure.get('pitch_diff_deg', math.nan)
     out['roll_wander_deg'] = closure.get('roll_diff_deg', math.nan)
+    for (lo, hi), asd in zip(RESIDUAL_BANDS_HZ, forward_residual_asd(data)):
+        out[f'residual_asd_{lo:g}_{hi:g}hz'] = asd
     out['reading_error_mps'] = math.nan if v_true_mps is None \
         else reading_error_mps(params, data, v_true_mps)
     return out
@@ -223,7 +271,7 @@ def sim_stats(label: str, scenario: Callable[[int], Any], seeds: Sequence[int]) 
 def sim_grades() -> dict[str, Callable[[int], Any]]:
     """The simulated sources of the comparison, by label: test17run-shaped drives with the
     default tactical IMU, the measured Pathfinder grade (also with its motion-bound vibration),
-    the default on rough ground, and the
+    both on ground that also surges the chassis, the default on rough ground, and the
     consumer grades at 30 Hz without and with the real mechanisms."""
     import dataclasses
 
@@ -250,6 +298,11 @@ def sim_grades() -> dict[str, Callable[[int], Any]]:
         'sim pathfinder_measured motion-bound, rocking': grade(
             ImuErrorConfig.pathfinder_measured(motion_bound=True),
             terrain=TerrainConfig.pathfinder_measured()),
+        'sim pathfinder_measured, rocking + surge': grade(
+            ImuErrorConfig.pathfinder_measured(), terrain=TerrainConfig.pathfinder_measured(True)),
+        'sim pathfinder_measured motion-bound, rocking + surge': grade(
+            ImuErrorConfig.pathfinder_measured(motion_bound=True),
+            terrain=TerrainConfig.pathfinder_measured(True)),
         'sim consumer_mems, 30 Hz': grade(ImuErrorConfig.consumer_mems(), 30.0),
         'sim consumer_mems_vibrating, rocking, 30 Hz': grade(
             ImuErrorConfig.consumer_mems_vibrating(), 30.0, TerrainConfig.pathfinder_measured()),

@@ -263,6 +263,34 @@ def test_rocking_is_real_attitude_motion_the_accelerometer_sees() -> None:
     assert np.max(np.abs([dcm_to_rpy(C)[:2] for C in flat.C_base_o])) < 1e-9
 
 
+
+def test_surge_is_fore_aft_motion_the_imu_sees_and_the_rims_do_not() -> None:
+    """One surge harmonic of amplitude b per m/s at speed v on flat ground: base_link's
+    displacement along the path from the same drive without it has zero mean and RMS
+    b v / sqrt(2), the accelerometer senses its acceleration (forward, RMS b v (m w)^2 /
+    sqrt(2), w the wheel rotation rate), the truth velocity is still the derivative of the
+    truth position, and the rims, the body speed and the slip truth are the unsurged ones."""
+    b, m = 0.003, 2.0
+    plain = simulate(_drive(ImuErrorConfig.ideal()))
+    surged = simulate(_drive(ImuErrorConfig.ideal(), terrain=dataclasses.replace(
+        FLAT, surge_harmonics=(m,), surge_m_per_mps=(b,))))
+    steady = surged.imu_t_s > 2.0
+    v = float(np.mean(surged.speed_mps[steady]))
+    dx = np.einsum('ni,ni->n', surged.p_ob_o - plain.p_ob_o, plain.C_base_o[:, :, 0])[steady]
+    assert abs(float(np.mean(dx))) < 0.02 * b * v
+    assert np.sqrt(np.mean(dx**2)) == pytest.approx(b * v / math.sqrt(2.0), rel=0.02)
+    w = m * v / surged.config.rover.wheel_radius_m
+    df = (surged.f_ib_imu - plain.f_ib_imu)[steady]
+    assert np.sqrt(np.mean(df[:, 0]**2)) == pytest.approx(b * v * w * w / math.sqrt(2.0),
+                                                          rel=0.02)
+    assert np.max(np.abs(df[:, 1:])) < 1e-5  # the planet rate's Coriolis on the surge only
+    dt = 1.0 / surged.config.rate_imu_hz
+    v_fd = (surged.p_ob_o[2:] - surged.p_ob_o[:-2]) / (2 * dt)
+    np.testing.assert_allclose(v_fd, surged.v_ob_o[1:-1], atol=2e-3)
+    np.testing.assert_array_equal(surged.rim_speed_true_mps, plain.rim_speed_true_mps)
+    np.testing.assert_array_equal(surged.speed_mps, plain.speed_mps)
+    np.testing.assert_array_equal(surged.slip_true, plain.slip_true)
+
 # --- ground without slip -------------------------------------------------------------------------
 
 @pytest.mark.parametrize('cfg', [short_scenario(2), patch_scenario(1, 120.0, rough=True),

@@ -35,6 +35,29 @@ def test_peak_frequency_and_band_std_of_known_sinusoids() -> None:
                                atol=1e-3)
 
 
+
+def test_forward_residual_of_a_surge_is_its_acceleration_in_band() -> None:
+    """A perfect IMU on flat ground: the IMU's forward speed departs from the rims' only by the
+    chassis surge, one harmonic at m w (w = v / r), acceleration amplitude a = b v (m w)^2. Its
+    one-sided PSD averaged over the 1-4 Hz band is (a H)^2 / 2 / 3 Hz, H the gain of the 0.1-s
+    means and the central difference at that frequency; below 1 Hz there is nothing."""
+    from slip_estimator.sim import simulate
+    from slip_estimator.sim.bag import sim_params
+    from slip_estimator.streams import from_simulation
+
+    b, m = 0.0027, 3.0
+    terrain = TerrainConfig(undulation_amplitude_m=0.0, surge_harmonics=(m,),
+                            surge_m_per_mps=(b,))
+    r = simulate(straight_scenario(0).replace(imu=ImuErrorConfig.ideal(), terrain=terrain,
+                                              rate_truth_hz=10.0))
+    low, band = svr.forward_residual_asd(from_simulation(r, sim_params(r)))
+    v = float(np.median(r.speed_mps[r.speed_mps > 0.5]))
+    w = m * v / r.config.rover.wheel_radius_m
+    x = w / 2 * 0.02  # half the phase step of the 0.02-s grid
+    gain = math.sin(5 * x) / (5 * math.sin(x)) * math.sin(2 * x) / (2 * x)
+    assert band == pytest.approx(b * v * w * w * gain / math.sqrt(2 * 3.0), rel=0.03)
+    assert low < 0.01 * band
+
 @pytest.fixture(scope='module')
 def grades() -> dict[str, dict[str, float]]:
     """Summaries over two seeds of the test17run-shaped drive for the grades compared."""
