@@ -137,7 +137,8 @@ class SlipChain:
                pitch_std_rad: float = 0.0, body_span_s: float | None = None,
                spread_scale_s: float = 1.0, start_speed_var: float = 0.0,
                body_window_s: tuple[float, float] | None = None,
-               rim_spun: bool = False, rest_offset_mps: float = 0.0) -> float:
+               rim_spun: bool = False, rest_offset_mps: float = 0.0,
+               run_ahead_return: bool = False) -> float:
         """The slip to hold after a measurement of ``measured`` at rim speed ``w`` and pitch
         ``pitch_rad`` (1-sigma ``pitch_std_rad``).
 
@@ -161,6 +162,8 @@ class SlipChain:
             start's free INS integrates that acceleration, and its speed errs to the offset's
             side by an amount nothing measured; the baseline before it, where it lies on the
             side the error hides, is held.
+        run_ahead_return : a rise from a run-ahead held since it was read downhill: the body
+            falling back onto the ground's slip, which the baseline is on any slope.
         """
         p = self.params
         if unmeasured:
@@ -255,7 +258,7 @@ class SlipChain:
                 return run[0]
             self._run = run
         base_pitch = self.baseline_pitch_rad
-        other_slope = base_pitch is not None and \
+        other_slope = base_pitch is not None and not run_ahead_return and \
             abs(pitch_rad - base_pitch) > SLOPE_RAD + _SLOPE_SIGMA * pitch_std_rad
         if (baseline is not None and p.slip_baseline == 'snap' and not other_slope
                 and abs(measured - baseline) * abs(w)
@@ -268,6 +271,11 @@ class SlipChain:
         if not rim_spun:
             self.ins_chain_var += spread_var
         return measured
+
+    def returned(self) -> None:
+        """A held run-ahead is over (:meth:`~.run_ahead.RunAheadCheck.returned`): the body is
+        back on the ground's slip, which ends the chain as a return to the baseline does."""
+        self.chain_var, self.ins_chain_var, self._run = 0.0, 0.0, None
 
     def guard_var_mps2(self, ins_var: float, held: float | None, w: float) -> float:
         """Body-speed variance the odometry guard judges, m^2/s^2: the INS's spread over a

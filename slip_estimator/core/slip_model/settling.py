@@ -26,7 +26,8 @@ def settle(s: ModelSample, measurement: SlipMeasurement, chain: SlipChain,
     """The slip ``measurement``, finished at sample ``s``, settles on (see the module
     docstring). ``previous``: the hold before a change (None after a start);
     ``from_rest``: it started from a ZUPT-anchored stop, whose zero-velocity updates left
-    ``rest_offset_mps`` (:meth:`~.stop_clock.StopClock.rest_offset_mps`); ``spread_var_mps2``:
+    ``rest_offset_mps`` (:meth:`~.stop_clock.StopClock.rest_offset_mps`); ``run_ahead``: the
+    pitch, and the run-ahead held (told what is held now); ``spread_var_mps2``:
     the free residual's spread per step-test scale; ``noise_var_mps2``: the wheel/INS
     consistency noise."""
     w = s.w_mps
@@ -45,13 +46,16 @@ def settle(s: ModelSample, measurement: SlipMeasurement, chain: SlipChain,
                                 spread_var_mps2[-1], SCALES_S[-1])
     if drifting and previous is not None:
         return previous  # INS drift, not a change: the hold stays
-    return chain.settle(
+    held = chain.settle(
         measured, previous, w, spread_var_mps2[-1], wheel_change_mps(p, w), from_rest,
         unmeasured, not from_rest and run_ahead.implausible(measured), run_ahead.pitch_rad,
         s.pitch_std_rad, body_span_s, SCALES_S[-1], s.speed_var_mps2, body_window_s,
         anchor is not None and not anchor.body and rim_spun(anchor, measured, w, previous,
                                                             spread_var_mps2),
-        rest_offset_mps if from_rest else 0.0)
+        rest_offset_mps if from_rest else 0.0,
+        run_ahead.ground is not None and previous is not None and measured > previous)
+    run_ahead.held(held, None if from_rest else previous, chain.baseline)
+    return held
 
 
 def rim_spun(anchor: Anchor, measured: float, w: float, previous: float | None,
