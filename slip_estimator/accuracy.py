@@ -246,8 +246,9 @@ def accuracy_main(argv: list[str] | None = None) -> int:
                     'test17run log with injected slip (through the core, declared parameters).',
         epilog='example: slip-estimator accuracy --seeds 3')
     ap.add_argument('--families', default=','.join(FAMILIES),
-                    help='comma-separated drive families (default: %(default)s; also the '
-                         'robot profiles ' + ', '.join(ROBOT_FAMILIES) + ')')
+                    help='comma-separated drive families (default: %(default)s; also every '
+                         'other scenario of simulate --scenario and the robot profiles '
+                         + ', '.join(ROBOT_FAMILIES) + ')')
     ap.add_argument('--seeds', type=int, default=12, help='seeds 0..N-1 per family')
     ap.add_argument('--data-dir', type=Path, default=None,
                     help='folder with test17run.mat (the real cases are skipped without it)')
@@ -260,10 +261,12 @@ def accuracy_main(argv: list[str] | None = None) -> int:
                          '(the IMU\'s ceiling for any slip model; ~20 s more per drive)')
     args = ap.parse_args(argv)
     families = [f for f in args.families.split(',') if f]
-    unknown = [f for f in families if f not in FAMILIES + ROBOT_FAMILIES]
+    from slip_estimator.sim.bag import SCENARIOS
+    known = tuple(SCENARIOS) + ROBOT_FAMILIES
+    unknown = [f for f in families if f not in known]
     if unknown:
         print(f'slip-estimator accuracy: unknown family {unknown[0]!r} (one of: '
-              f'{", ".join(FAMILIES + ROBOT_FAMILIES)})', file=sys.stderr)
+              f'{", ".join(known)})', file=sys.stderr)
         return 2
     overrides = {}
     for item in args.set:

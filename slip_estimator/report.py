@@ -1,8 +1,9 @@
 """Command-line shell of ``slip-estimator evaluate``.
 
 Thin by design (parse arguments, read bags, call :mod:`slip_estimator.evaluation`, draw the
-figures of :mod:`slip_estimator.report_figures`, show progress). The bag reader :func:`load_run` turns an input bag and an
-estimator output bag into a plain :class:`~slip_estimator.evaluation.RunData`.
+figures of :mod:`slip_estimator.report_figures`, show progress). The bag reader
+:func:`load_run` turns an input bag and an estimator output bag into a plain
+:class:`~slip_estimator.evaluation.RunData`.
 """
 from __future__ import annotations
 

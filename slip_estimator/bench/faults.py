@@ -1,10 +1,10 @@
 """Fault injection for message streams, and the measurements the fault tests make on replays.
 
 A *stream* is a list of ``(topic, message, log_time_ns)`` in arrival (log-time) order, the
-format of the fault-injection tests and of :mod:`slip_estimator.bench.soak`. Every mutator returns a NEW list and never changes
-the messages of its input (a message it alters is copied first), so one clean stream can be
-reused for many faults. Times are integer nanoseconds of the header stamps (``stamp_ns``);
-windows are half-open ``[start_ns, end_ns)``.
+format of the fault-injection tests and of :mod:`slip_estimator.bench.soak`. Every mutator
+returns a NEW list and never changes the messages of its input (a message it alters is copied
+first), so one clean stream can be reused for many faults. Times are integer nanoseconds of the
+header stamps (``stamp_ns``); windows are half-open ``[start_ns, end_ns)``.
 
 Mutators: :func:`drop`, :func:`duplicate`, :func:`reorder`, :func:`corrupt_imu`,
 :func:`corrupt_wheels`, :func:`spike`, :func:`zero_stamps`, :func:`shift_stamps` (forward or

@@ -53,8 +53,8 @@ from slip_estimator.core.error_model import process_noise, system_matrix
 from slip_estimator.core.history import Correction
 from slip_estimator.core.mechanization import mechanize_step
 from slip_estimator.core.params import Params
-from slip_estimator.core.planet import Planet
-from slip_estimator.core.state import ATT, BA, BG, N_ERR, VEL, NavState, correct
+from slip_estimator.core.planet import Planet, radii_of_curvature
+from slip_estimator.core.state import ATT, BA, BG, N_ERR, POS, VEL, NavState, correct
 
 _EYE_15 = np.eye(N_ERR)
 _EYE_15.flags.writeable = False
@@ -296,3 +296,31 @@ class ErrorStateFilter:
     def variance(self, H: np.ndarray) -> float:
         """``H P H^T`` of a one-row H, from P of the last propagation epoch."""
         return float((H @ self.P @ H.T)[0, 0])
+
+    def decorrelate_cross_track(self) -> None:
+        """Forget the correlation of the position's cross-track error (horizontal, across the
+        body's forward axis) with every other error, its variance kept (P stays positive
+        semi-definite); the along-track and vertical errors keep theirs. The updates that follow
+        then move the position sideways only for errors built from here on (no measurement in
+        this filter sees the position itself). Where the published track ends a wheels + gyro
+        fallback (:meth:`OdometryGuard.wheel`)."""
+        st = self.state
+        fn, fe = float(st.C_b_n[0, 0]), float(st.C_b_n[1, 0])
+        norm = math.hypot(fn, fe)
+        if norm < 1e-6:  # the forward axis vertical: no cross-track direction
+            return
+        L_rad, h_m = float(st.llh[0]), float(st.llh[2])
+        R_N, R_E = radii_of_curvature(self.planet, L_rad)
+        to_m = np.diag(((R_N + h_m), (R_E + h_m) * math.cos(L_rad)))
+        # error states -> (along, cross) metres in place of (dL, dlambda)
+        M = np.eye(N_ERR)
+        i = POS.start
+        M[i:i + 2, i:i + 2] = np.array([[fn, fe], [-fe, fn]]) / norm @ to_m
+        P = M @ self.P @ M.T
+        c = i + 1
+        var = P[c, c]
+        P[c, :] = 0.0
+        P[:, c] = 0.0
+        P[c, c] = var
+        M_inv = np.linalg.inv(M)
+        self.P = M_inv @ P @ M_inv.T

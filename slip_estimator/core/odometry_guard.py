@@ -13,7 +13,13 @@ attitude's x axis (the fused heading and slope), from where the published track 
 by the fused position's increments. The track is continuous either way (no jump at a switch).
 A fallback that lasted a measuring span holds through a stop (the wheels' zero speed): the
 stop's zero-velocity aid corrects the fused position for the INS's speed error while the track
-followed the wheels.
+followed the wheels. For the same reason, where such a fallback ends the fused position forgets
+its cross-track error's correlation with the INS's other errors: the fused track then moves
+sideways only for errors built after it. The published track came along the fused heading at
+the rim speed, so it shares the aided INS's along-track error (the rim speed the aid gave it:
+forgetting that correlation too cost `skid_steer_30hz` seed 0 0.45 -> 1.11 m, kept 0.55), but
+not the INS's sideways position error, which the later speed updates would otherwise correct
+in the published track (seed 2: 1.2 m sideways within 0.4 s, 2 s after a fallback ended).
 
 The INS's speed error is the IMU's own measured error over a measuring span: the slip model's
 learned spread of the free residual's change (:attr:`SlipModel.spread_var`) at its longest
@@ -122,7 +128,7 @@ class OdometryGuard:
         self.samples = {'moving': 0, 'fallback': 0}
         self._since_ns: int | None = None  # when the fallback under way began
 
-    def wheel(self, decision: GuardDecision) -> None:
+    def wheel(self, decision: GuardDecision) -> bool:
         """The verdict at the latest evaluated wheel sample (holds until the next). A fallback
         under way holds through still wheels: the stop's zero-velocity aid corrects the fused
         position for the INS's speed error over the fallback, which the published track never
@@ -132,16 +138,25 @@ class OdometryGuard:
         decelerating into the stop (under 15 % of a slowing rim speed the error is always
         coarse), not the INS, and there the zero-velocity aid corrects a good INS (a tactical
         drive's fallbacks began at 0.07-0.2 m/s for 0.2-0.7 s; holding them ended it 0.97 m
-        off, 0.11 m without)."""
-        if decision.still and self.fallback and self._since_ns is not None and \
-                decision.stamp_ns - self._since_ns >= SCALES_S[-1] * 1e9:
+        off, 0.11 m without).
+
+        Returns True where a fallback that lasted that span ends here: the fused position's
+        cross-track error is then the INS's over the fallback, which the published track (on
+        the wheels) never had, and its correlation with the INS's other errors is to be
+        forgotten (:meth:`ErrorStateFilter.decorrelate_cross_track`; see the module
+        docstring)."""
+        lasted = self.fallback and self._since_ns is not None and \
+            decision.stamp_ns - self._since_ns >= SCALES_S[-1] * 1e9
+        if decision.still and lasted:
             decision = replace(decision, fallback=True)
         elif decision.fallback and not self.fallback:
             self._since_ns = decision.stamp_ns
+        ended = lasted and not decision.fallback
         self.decision = decision
         if decision.moving:
             self.samples['moving'] += 1
             self.samples['fallback'] += decision.fallback
+        return ended
 
     @property
     def fallback(self) -> bool:

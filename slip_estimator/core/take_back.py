@@ -1,15 +1,15 @@
-"""Verifying a take-back (:mod:`slip_estimator.core.history`: what the wheel aid taught since
-a body-side change began is taken back at its alarm). On an IMU whose tilt wanders (the
-simulated Pathfinder's vibration), what the aid taught over the seconds before a false
-body-side alarm was its levelling of the INS's own excursion; taken back, the INS runs away at the rate removed (0.26-0.54 m/s in the
-next second after 0.30-0.46 m/s^2 removed on ground that never slips, the rim steady) and a
-false slip is held. A true change mostly leaves the INS level after the take-back, but where
-the body keeps slowing through the check (a slip ramp the alarm fired in the middle of) the
-INS follows it at a rate like the one removed: only a take-back well beyond what this IMU
-resolves over the check (:class:`RunawayScale`, measured: its free residual's 1-s spread,
-its tilt 1-sigma, the aid's innovation scatter) is checked. :class:`TakeBackCheck` keeps
-the last take-back and returns the correction that restores it (its tilt and bias, and the
-speed lost meanwhile). numpy and the standard library only.
+"""Verifying a take-back (:mod:`slip_estimator.core.history`: what the wheel aid taught since a
+body-side change began is taken back at its alarm). On an IMU whose tilt wanders (the simulated
+Pathfinder's vibration), what the aid taught over the seconds before a false body-side alarm
+was its levelling of the INS's own excursion; taken back, the INS runs away at the rate removed
+(0.26-0.54 m/s in the next second after 0.30-0.46 m/s^2 removed on ground that never slips, the
+rim steady) and a false slip is held. A true change mostly leaves the INS level after the
+take-back, but where the body keeps slowing through the check (a slip ramp the alarm fired in
+the middle of) the INS follows it at a rate like the one removed: only a take-back well beyond
+what this IMU resolves over the check (:class:`RunawayScale`, measured: its free residual's 1-s
+spread, its tilt 1-sigma, the aid's innovation scatter) is checked. :class:`TakeBackCheck`
+keeps the last take-back and returns the correction that restores it (its tilt and bias, and
+the speed lost meanwhile). numpy and the standard library only.
 """
 from __future__ import annotations
 
@@ -53,12 +53,13 @@ class RunawayScale(NamedTuple):
 def runaway_scale(spread_var_mps2: float, tilt_std_rad: float, g_mps2: float,
                   aid_noise_var_mps2: float) -> RunawayScale:
     """The check's scale from measured quantities: the acceleration is the coarser of the free
-    residual's measured spread over the check span (``spread_var_mps2``, the step test's at
-    its shortest scale) per that span and the filter's tilt resolution (``tilt_std_rad``, its
-    1-sigma, grown by the vibration the IMU shows) times ``g_mps2`` (a take-back within either could be the aid's routine levelling of a
-    real tilt or a body that keeps slowing); the rim tolerance is the wheel aid's measured
-    innovation scatter (``aid_noise_var_mps2``: encoder quantisation, pitching; where the rim
-    moves beyond it, the INS may have followed the body)."""
+    residual's measured spread over the check span (``spread_var_mps2``, the step test's at its
+    shortest scale) per that span and the filter's tilt resolution (``tilt_std_rad``, its
+    1-sigma, grown by the vibration the IMU shows) times ``g_mps2`` (a take-back within either
+    could be the aid's routine levelling of a real tilt or a body that keeps slowing); the rim
+    tolerance is the wheel aid's measured innovation scatter (``aid_noise_var_mps2``: encoder
+    quantisation, pitching; where the rim moves beyond it, the INS may have followed the
+    body)."""
     return RunawayScale(max(math.sqrt(spread_var_mps2) / TAKE_BACK_CHECK_S,
                             tilt_std_rad * g_mps2), math.sqrt(aid_noise_var_mps2))
 

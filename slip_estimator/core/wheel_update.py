@@ -6,9 +6,11 @@ the body motion ``wheel_latency_s`` before the stamp is read from the history, t
 yaw-rate aid corrects the gyro z bias, the slip estimate is computed (unknown while the
 estimator recovers: the rim re-anchors the speed), and the wheel aid's decision
 (:class:`~slip_estimator.core.slip_model.aid_decision.AidDecision`) is carried out on the filter
-as a gated forward-speed update or an anchor. Every correction is recorded in the history. The
-estimator (:mod:`slip_estimator.core.estimator`) makes one per filter run and hands it the
-wheel samples the INS has reached; it does not call back.
+as a gated forward-speed update or an anchor; where the odometry guard's verdict ends a
+fallback of a measuring span, the fused position's cross-track correlations are forgotten
+(:meth:`~slip_estimator.core.odometry_guard.OdometryGuard.wheel`). Every correction is
+recorded in the history. The estimator (:mod:`slip_estimator.core.estimator`) makes one per
+filter run and hands it the wheel samples the INS has reached; it does not call back.
 """
 from __future__ import annotations
 
@@ -92,7 +94,8 @@ class WheelUpdate:
         self._apply_aid(self.wheel_aid.decide(
             wheel, at, est, st.C_b_n, turning, self.filter.tilt_std_rad(),
             self.filter.forward_reading_var_mps2(SCALES_S), var_ins), at)
-        self.odometry_guard.wheel(self.wheel_aid.odometry_decision(est))
+        if self.odometry_guard.wheel(self.wheel_aid.odometry_decision(est)):
+            self.filter.decorrelate_cross_track()  # a fallback of a measuring span ended
         return est
 
     def _apply_aid(self, d: AidDecision | None, at: HistoryPoint) -> None:

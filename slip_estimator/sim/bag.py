@@ -296,11 +296,16 @@ SCENARIOS = {
     'measured': lambda seed=0, noise_seed=None: measured_ground(patch_scenario(
         seed, noise_seed=noise_seed)),
     'measured_no_slip': lambda seed=0, noise_seed=None: no_slip(measured_ground(
-        patch_scenario(seed, noise_seed=noise_seed)))}
+        patch_scenario(seed, noise_seed=noise_seed))),
+    'measured_motion_bound': lambda seed=0, noise_seed=None: measured_ground(patch_scenario(
+        seed, noise_seed=noise_seed), motion_bound=True),
+    'measured_motion_bound_no_slip': lambda seed=0, noise_seed=None: no_slip(measured_ground(
+        patch_scenario(seed, noise_seed=noise_seed), motion_bound=True))}
 """The scenarios ``simulate --scenario`` offers (wheel-rate control unless mixed). The
 ``*no_slip`` ones are the patches drive over ground that shows no slip at all (the
 false-alarm rate); ``measured*`` have the IMU mechanisms and chassis rocking measured on the
-real Pathfinder (``docs/sim-vs-real.md``)."""
+real Pathfinder (``docs/sim-vs-real.md``), ``measured_motion_bound*`` with its vibration
+without white content at 0 Hz (:meth:`~.imu_grades.VibrationConfig.pathfinder_measured`)."""
 
 
 def simulate_main(argv: list[str] | None = None) -> int:

@@ -253,13 +253,15 @@ def stop_and_go_scenario(seed: int = 0, noise_seed: int | None = None) -> Scenar
                           noise_seed=seed + 1 if noise_seed is None else noise_seed)
 
 
-def measured_ground(cfg: ScenarioConfig) -> ScenarioConfig:
+def measured_ground(cfg: ScenarioConfig, motion_bound: bool = False) -> ScenarioConfig:
     """The same drive with the IMU error mechanisms measured on the real Pathfinder
-    (:meth:`~.imu_grades.ImuErrorConfig.pathfinder_measured`) and its chassis rocking added to
-    the drive's own terrain (:meth:`~.scenario.TerrainConfig.pathfinder_measured`)."""
+    (:meth:`~.imu_grades.ImuErrorConfig.pathfinder_measured`, ``motion_bound`` passed on) and
+    its chassis rocking added to the drive's own terrain
+    (:meth:`~.scenario.TerrainConfig.pathfinder_measured`)."""
     from slip_estimator.sim.imu_grades import ImuErrorConfig
 
     rock = TerrainConfig.pathfinder_measured()
-    return cfg.replace(imu=ImuErrorConfig.pathfinder_measured(), terrain=dataclasses.replace(
-        cfg.terrain, rocking_harmonics=rock.rocking_harmonics,
-        rocking_rad_per_mps=rock.rocking_rad_per_mps))
+    return cfg.replace(imu=ImuErrorConfig.pathfinder_measured(motion_bound),
+                       terrain=dataclasses.replace(
+                           cfg.terrain, rocking_harmonics=rock.rocking_harmonics,
+                           rocking_rad_per_mps=rock.rocking_rad_per_mps))

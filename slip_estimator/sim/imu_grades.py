@@ -46,6 +46,22 @@ class VibrationConfig:
         :func:`slip_estimator.validation.imu_floor.tilt_closure`). Over a drive of length L >> T
         the tilt error is a random walk of variance 2 sigma^2 T L.
     rectified_correlation_time_s : its correlation time T, s.
+    accel_broadband_differenced_mps2_per_mps : accelerometer broadband as a first difference
+        of white noise, (w_k - w_k-1) / sqrt(2), per-sample 1-sigma per m/s, (m/s^2)/(m/s):
+        the same per-sample scatter as the white broadband but no power at 0 Hz (its
+        integral over any span is two samples' noise times dt), so it shakes the samples
+        without being a velocity random walk.
+    gyro_broadband_differenced_rps_per_mps : the gyro's broadband in the same form,
+        (rad/s)/(m/s): the scatter above a few Hz without the angle random walk a white
+        broadband integrates (the tilt wander is then ``gyro_rectified_rps_per_mps``'s).
+    accel_lowband_mps2_per_mps : stationary 1-sigma of a motion-bound, low-frequency
+        accelerometer error per m/s of vibration speed, (m/s^2)/(m/s): a first-order
+        Gauss-Markov process per axis (correlation time ``accel_lowband_correlation_s``)
+        times the vibration speed, zero at rest (what the ground and the suspension add that
+        the INS cannot tell from acceleration). Its one-sided PSD below 1 / (2 pi T) is
+        4 sigma^2 T; the speed change it integrates over a span L has variance
+        2 sigma^2 T^2 (L / T - 1 + exp(-L / T)) at a steady speed.
+    accel_lowband_correlation_s : its correlation time T, s.
 
     Every field after ``gyro_broadband_rps_per_mps`` defaults to off, so the default
     vibration (and every drive built on it) is unchanged by their existence.
@@ -61,6 +77,10 @@ class VibrationConfig:
     gyro_resonance_rps_per_mps: tuple[float, ...] = ()
     gyro_rectified_rps_per_mps: float = 0.0
     rectified_correlation_time_s: float = 5.0
+    accel_broadband_differenced_mps2_per_mps: float = 0.0
+    gyro_broadband_differenced_rps_per_mps: float = 0.0
+    accel_lowband_mps2_per_mps: float = 0.0
+    accel_lowband_correlation_s: float = 1.0
 
     def __post_init__(self) -> None:
         if not (len(self.harmonic_multipliers) == len(self.accel_harmonic_mps2_per_mps)
@@ -71,6 +91,8 @@ class VibrationConfig:
             raise ValueError('vibration: one accelerometer and one gyro amplitude per resonance')
         if not self.rectified_correlation_time_s > 0.0:
             raise ValueError('vibration: rectified_correlation_time_s must be > 0')
+        if not self.accel_lowband_correlation_s > 0.0:
+            raise ValueError('vibration: accel_lowband_correlation_s must be > 0')
 
     @classmethod
     def off(cls) -> VibrationConfig:
@@ -78,7 +100,7 @@ class VibrationConfig:
         return cls((), (), (), 0.0, 0.0)
 
     @classmethod
-    def pathfinder_measured(cls) -> VibrationConfig:
+    def pathfinder_measured(cls, motion_bound: bool = False) -> VibrationConfig:
         """The sensor vibration measured on the real Pathfinder (test17run, 52 s at 0.73 m/s,
         ``python -m slip_estimator.validation.sim_vs_real_page``): accelerometer scatter
         0.5-1.3 m/s^2 per axis above 8 Hz and gyro scatter ~0.02 rad/s above 8 Hz, both
@@ -90,7 +112,22 @@ class VibrationConfig:
         walk: 0.02 rad/s per sample at 250 Hz is 0.5 deg over 52 s, the tilt wander measured
         on test17run (:func:`~slip_estimator.validation.imu_floor.tilt_closure`), so no
         rectified term is needed on top. The gyro's larger scatter below 8 Hz is the chassis
-        rocking, real attitude motion (:meth:`TerrainConfig.pathfinder_measured`)."""
+        rocking, real attitude motion (:meth:`TerrainConfig.pathfinder_measured`).
+
+        ``motion_bound``: the same per-sample scatter without its white content at 0 Hz
+        (issue 27, deliverable 4): the broadband of both sensors differenced (no velocity or
+        angle random walk), a Gauss-Markov accelerometer error of 0.053 (m/s^2)/(m/s) and 1 s
+        (one-sided PSD 0.077 m/s^2/sqrt(Hz) at 0.73 m/s below 0.16 Hz: the real residual
+        of the IMU's forward speed against the rims, 0.06-0.08 on both logs below 1 Hz) and
+        the tilt wander as the rectified gyro error, 3e-4 (rad/s)/(m/s) over 5 s. The white
+        broadband made the stop's tilt closure 3.5-4.6 times the real one
+        (``validation.stop_tilt``)."""
+        if motion_bound:
+            return cls((3.0, 4.0, 5.0, 6.0), (0.0, 0.0, 0.0, 0.0), (0.03, 0.03, 0.03, 0.03),
+                       0.0, 0.0, gyro_rectified_rps_per_mps=3.0e-4,
+                       accel_broadband_differenced_mps2_per_mps=1.2,
+                       gyro_broadband_differenced_rps_per_mps=0.027,
+                       accel_lowband_mps2_per_mps=0.053, accel_lowband_correlation_s=1.0)
         return cls((3.0, 4.0, 5.0, 6.0), (0.0, 0.0, 0.0, 0.0), (0.03, 0.03, 0.03, 0.03),
                    1.2, 0.027)
 
@@ -104,7 +141,12 @@ class VibrationConfig:
             gyro_broadband_rps_per_mps=k * self.gyro_broadband_rps_per_mps,
             accel_resonance_mps2_per_mps=tuple(k * a for a in self.accel_resonance_mps2_per_mps),
             gyro_resonance_rps_per_mps=tuple(k * a for a in self.gyro_resonance_rps_per_mps),
-            gyro_rectified_rps_per_mps=k * self.gyro_rectified_rps_per_mps)
+            gyro_rectified_rps_per_mps=k * self.gyro_rectified_rps_per_mps,
+            accel_broadband_differenced_mps2_per_mps=(
+                k * self.accel_broadband_differenced_mps2_per_mps),
+            gyro_broadband_differenced_rps_per_mps=(
+                k * self.gyro_broadband_differenced_rps_per_mps),
+            accel_lowband_mps2_per_mps=k * self.accel_lowband_mps2_per_mps)
 
 
 @dataclass(frozen=True)
@@ -189,17 +231,19 @@ class ImuErrorConfig:
             accel_scale_factor_sigma=5.0e-3, gyro_scale_factor_sigma=5.0e-3)
 
     @classmethod
-    def pathfinder_measured(cls) -> ImuErrorConfig:
+    def pathfinder_measured(cls, motion_bound: bool = False) -> ImuErrorConfig:
         """The tactical IMU with the error mechanisms measured on the real Pathfinder: its
         driving vibration and tilt wander (:meth:`VibrationConfig.pathfinder_measured`), the
         white noise measured at its rests (0.018 m/s^2 and 0.00105 rad/s per sample at 250 Hz),
         the datasheet's in-run bias instability (ADIS16495: 1.6 deg/h, 3.2 micro-g),
-        g-sensitivity 0.009 deg/s/g, 0.05 % scale factors and 1 mrad misalignment."""
+        g-sensitivity 0.009 deg/s/g, 0.05 % scale factors and 1 mrad misalignment.
+        ``motion_bound``: its vibration without white content at 0 Hz
+        (:meth:`VibrationConfig.pathfinder_measured`)."""
         return dataclasses.replace(
             cls(), accel_noise_density_mps2_rthz=1.1e-3, gyro_noise_density_rps_rthz=6.5e-5,
             accel_scale_factor_sigma=5.0e-4, gyro_scale_factor_sigma=5.0e-4,
             accel_misalignment_sigma_rad=1.0e-3, gyro_misalignment_sigma_rad=1.0e-3,
-            vibration=VibrationConfig.pathfinder_measured(),
+            vibration=VibrationConfig.pathfinder_measured(motion_bound),
             accel_bias_instability_mps2=3.2e-6 * 9.81,
             gyro_bias_instability_rps=math.radians(1.6 / 3600.0), bias_correlation_time_s=100.0,
             gyro_g_sensitivity_rps_per_mps2=math.radians(0.009) / 9.81)

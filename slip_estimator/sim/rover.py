@@ -120,7 +120,7 @@ def simulate(config: ScenarioConfig) -> SimResult:
     seeds = np.random.SeedSequence(cfg.noise_seed).spawn(8)
     rng_bias, rng_rw, rng_white, rng_vib, rng_enc, rng_gnss, rng_sf = [
         np.random.default_rng(s) for s in seeds[:7]]
-    rngs_real = [np.random.default_rng(s) for s in seeds[7].spawn(4)]
+    rngs_real = [np.random.default_rng(s) for s in seeds[7].spawn(5)]
     # sample indices (fine index 1 is t = 0)
     grid = tr.grid
     i_imu = 1 + np.arange(0, grid.n, cfg.oversample)

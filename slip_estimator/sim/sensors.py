@@ -3,9 +3,11 @@
 Sensors (noise seed): constant biases, bias random walks, white noise, optional scale factor
 and misalignment, speed-dependent vibration; optionally (:func:`_real_imu_mechanisms`, each
 off by default) Gauss-Markov bias instability, gyro g-sensitivity, a vibration-rectified gyro
-error that makes the integrated tilt wander while driving, and fixed-frequency resonances
-sampled without an anti-alias filter (folded to ``|f - k rate|``); encoder counts quantised at
-``encoder_pulses_per_m`` with a random initial phase; GNSS from truth with white noise.
+error that makes the integrated tilt wander while driving, fixed-frequency resonances
+sampled without an anti-alias filter (folded to ``|f - k rate|``), a differenced broadband
+(no power at 0 Hz) and a motion-bound low-frequency accelerometer error; encoder counts
+quantised at ``encoder_pulses_per_m`` with a random initial phase; GNSS from truth with white
+noise.
 
 The wheel slip truth at the encoder stamps and a 2-D wheel odometry from the measured encoders
 are computed here too. Only the standard library and numpy are imported here.
@@ -108,6 +110,32 @@ def gauss_markov(rng: np.random.Generator, n: int, dt_s: float, tau_s: float,
     return x
 
 
+def differenced_white(rng: np.random.Generator, n: int, sigma: float, axes: int = 3
+                      ) -> np.ndarray:
+    """``n`` samples per axis of ``sigma (w_k - w_k-1) / sqrt(2)`` (``w`` unit white): per-sample
+    variance sigma^2, lag-1 correlation -1/2, none beyond; its running sum is
+    ``sigma (w_k - w_-1) / sqrt(2)``, bounded (no power at 0 Hz)."""
+    w = rng.normal(0.0, 1.0, (n + 1, axes))
+    return (w[1:] - w[:-1]) * (sigma / math.sqrt(2.0))
+
+
+def _motion_bound_errors(cfg: ScenarioConfig, speed_mps: np.ndarray, f_meas: np.ndarray,
+                         w_meas: np.ndarray, rng: np.random.Generator) -> None:
+    """Adds, in place, the differenced broadband (accelerometer and gyro) and the
+    accelerometer's motion-bound low-frequency (Gauss-Markov) error, each times the vibration
+    speed ``speed_mps`` (:class:`~.imu_grades.VibrationConfig`); draws nothing when all are
+    off."""
+    vib = cfg.imu.vibration
+    n, dt = len(f_meas), 1.0 / cfg.rate_imu_hz
+    for x, sigma in ((f_meas, vib.accel_broadband_differenced_mps2_per_mps),
+                     (w_meas, vib.gyro_broadband_differenced_rps_per_mps)):
+        if sigma > 0.0:
+            x += differenced_white(rng, n, sigma) * speed_mps[:, None]
+    if vib.accel_lowband_mps2_per_mps > 0.0:
+        f_meas += gauss_markov(rng, n, dt, vib.accel_lowband_correlation_s,
+                               vib.accel_lowband_mps2_per_mps) * speed_mps[:, None]
+
+
 def _real_imu_mechanisms(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray,
                          f_true: np.ndarray, f_vib: np.ndarray, f_meas: np.ndarray,
                          w_meas: np.ndarray, ba: np.ndarray, bg: np.ndarray,
@@ -116,10 +144,11 @@ def _real_imu_mechanisms(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray,
     Gauss-Markov bias instability (also into the true biases ``ba``, ``bg``), gyro
     g-sensitivity on the sensed acceleration ``f_true + f_vib``, the vibration-rectified gyro
     error (Gauss-Markov times the vibration speed) and fixed-frequency resonances sampled at the
-    IMU instants. Each draws from its own generator of ``rngs``, so switching one on leaves
-    the others' draws alone."""
+    IMU instants, the differenced broadband and the accelerometer's motion-bound low-frequency
+    error (:func:`_motion_bound_errors`). Each draws from its own generator of ``rngs``, so
+    switching one on leaves the others' draws alone."""
     e, vib = cfg.imu, cfg.imu.vibration
-    rng_gm, rng_gs, rng_rect, rng_res = rngs
+    rng_gm, rng_gs, rng_rect, rng_res, rng_accel = rngs
     n, dt = len(f_meas), 1.0 / cfg.rate_imu_hz
     if e.accel_bias_instability_mps2 > 0.0 or e.gyro_bias_instability_rps > 0.0:
         gm = gauss_markov(rng_gm, n, dt, e.bias_correlation_time_s, 1.0, axes=6)
@@ -139,6 +168,7 @@ def _real_imu_mechanisms(cfg: ScenarioConfig, tr: _Truth, i_imu: np.ndarray,
                                   vib.gyro_resonance_rps_per_mps):
         _add_sinusoid(rng_res, f_meas, w_meas, 2.0 * math.pi * f_hz * t, amp_a * speed,
                       amp_g * speed)
+    _motion_bound_errors(cfg, speed, f_meas, w_meas, rng_accel)
 
 
 def _wheel_encoders(cfg: ScenarioConfig, rim: np.ndarray, i_wheel: np.ndarray, h: float,

@@ -201,7 +201,8 @@ def undeclared(page: Page) -> list[str]:
 
 def stop_tilt(page: Page) -> list[str]:
     """The tilt closure at stops, real against simulated."""
-    return stop_tilt_section(page.study.evidence.get('stop_tilt'))
+    return stop_tilt_section(page.study.evidence.get('stop_tilt'),
+                             page.study.evidence.get('reading_error'))
 
 
 def unexplained(page: Page) -> list[str]:

@@ -204,10 +204,13 @@ def _pair(s: dict[str, float], key: str, unit: str = 'deg') -> str:
     return f'{fmt(s[f"{key}_median_{unit}"])} / {fmt(s[f"{key}_p90_{unit}"])}'
 
 
-def stop_tilt_section(closures: dict[str, list[dict[str, float]]] | None) -> list[str]:
+def stop_tilt_section(closures: dict[str, list[dict[str, float]]] | None,
+                      readings: dict[str, list[float]] | None = None) -> list[str]:
     """Issue 27: the tilt a stop's zero velocity moves on each real log and on simulated
     drives of its shape (:mod:`slip_estimator.validation.stop_tilt`), with the sim / real
-    ratios and the verdict."""
+    ratios and the verdict; then the free INS's 1.5-s reading error on the RTK log and the
+    simulated drives of its shape (``readings``: per label, each drive's, m/s), which a
+    simulated accelerometer that matches the closure must keep."""
     if not closures:
         return []
     summary = {k: summarize(v) for k, v in closures.items()}
@@ -255,7 +258,11 @@ def stop_tilt_section(closures: dict[str, list[dict[str, float]]] | None) -> lis
          '|tilt delta| / sqrt(drive time), deg/sqrt(s). Simulated, on drives shaped like '
          f'each real log: {seeds} (the Pathfinder IMU: the IMU mechanisms and chassis rocking '
          'measured on the real rover, `docs/sim-vs-real.md`, on ground without slip, so no '
-         'slip decision moves the tilt). The verdict compares the first ZUPT\'s tilt '
+         'slip decision moves the tilt; motion-bound: its vibration without white content '
+         'at 0 Hz, the broadband of both sensors differenced, a 1-s Gauss-Markov '
+         'accelerometer error and the tilt wander as a rectified gyro error, '
+         '`sim.imu_grades.VibrationConfig.pathfinder_measured(motion_bound=True)`). '
+         'The verdict compares the first ZUPT\'s tilt '
          '(median) with the real log of the same shape, and the tilt over '
          f'{LEVEL_S:g} s: within x{SIM_REAL_FACTOR:g} either way is reproduced. Ratios sim / '
          'real: speed at the stop / first-ZUPT tilt / tilt over 1 s.'), '',
@@ -269,8 +276,30 @@ def stop_tilt_section(closures: dict[str, list[dict[str, float]]] | None) -> lis
                    'the speed error at the stop through the filter\'s velocity-tilt '
                    'correlation (its gain is of one size on both sources), and the tilt over '
                    f'{LEVEL_S:g} s is what the rest levels after it: the filter arrives at the '
-                   'stop with a larger speed or tilt error on the simulator, which the gyro\'s '
-                   'tilt wander does not explain (its rows in `docs/sim-vs-real.md` match the '
-                   'real log). Which simulated mechanism sets it, measured by switching each '
-                   'off: `docs/limits.md`, "The simulated stop closure".'), '']
-    return lines
+                   'stop with a larger speed or tilt error on the simulator. Which simulated '
+                   'mechanism sets it, measured by switching each off: `docs/limits.md`, "The '
+                   'simulated stop closure".'), '']
+    return lines + _reading_lines(closures, readings or {})
+
+
+def _reading_lines(closures: dict[str, list[dict[str, float]]],
+                   readings: dict[str, list[float]]) -> list[str]:
+    """The 1.5-s reading error of every source that has one against its real log's."""
+    table = []
+    for label, runs in sorted(readings.items(), key=lambda item: item[0] in SIM_SOURCES):
+        real = SIM_SOURCES[label][2] if label in SIM_SOURCES else ''
+        mean = float(np.mean(runs))
+        ref = float(np.mean(readings[real])) if real in readings else math.nan
+        ratio = fmt(mean / ref, 2) if math.isfinite(ref) else '–'
+        verdict = sim_real_verdict(mean, ref) if math.isfinite(ref) else '–'
+        table.append([label, str(len(runs)), fmt(mean), ratio, verdict])
+    if not table:
+        return []
+    return [
+        ('The free INS\'s reading error, the statistic the simulated accelerometer\'s driving '
+         'error must keep while it matches the closure above (`validation.sim_vs_real.'
+         'reading_error_mps`: the shipped filter\'s state every 0.1 s of driving, then the raw '
+         'IMU alone for 1.5 s, against the true speed change: RTK on the real log, the '
+         'simulator\'s truth on drives of its shape; the mean over drives):'), '',
+        *md_table(['source', 'drives', '1.5-s reading error RMS [m/s]', 'sim / real',
+                   'verdict'], table), '']

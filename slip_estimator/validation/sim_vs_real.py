@@ -222,7 +222,8 @@ def sim_stats(label: str, scenario: Callable[[int], Any], seeds: Sequence[int]) 
 
 def sim_grades() -> dict[str, Callable[[int], Any]]:
     """The simulated sources of the comparison, by label: test17run-shaped drives with the
-    default tactical IMU, the measured Pathfinder grade, the default on rough ground, and the
+    default tactical IMU, the measured Pathfinder grade (also with its motion-bound vibration),
+    the default on rough ground, and the
     consumer grades at 30 Hz without and with the real mechanisms."""
     import dataclasses
 
@@ -246,6 +247,9 @@ def sim_grades() -> dict[str, Callable[[int], Any]]:
         'sim tactical, rough ground (patches rough)': grade(rough_vib, terrain=rough),
         'sim pathfinder_measured, rocking': grade(ImuErrorConfig.pathfinder_measured(),
                                                   terrain=TerrainConfig.pathfinder_measured()),
+        'sim pathfinder_measured motion-bound, rocking': grade(
+            ImuErrorConfig.pathfinder_measured(motion_bound=True),
+            terrain=TerrainConfig.pathfinder_measured()),
         'sim consumer_mems, 30 Hz': grade(ImuErrorConfig.consumer_mems(), 30.0),
         'sim consumer_mems_vibrating, rocking, 30 Hz': grade(
             ImuErrorConfig.consumer_mems_vibrating(), 30.0, TerrainConfig.pathfinder_measured()),

@@ -29,7 +29,9 @@ comparable: the simulated sources (:data:`SIM_SOURCES`) have each real log's sha
 :func:`submit_closures` runs every source on a worker pool (``slip-estimator validate`` runs
 them beside its serial core-level evidence runs); the report's section is
 :func:`slip_estimator.validation.sections_evidence.stop_tilt_section`. Only numpy, the core,
-the simulator and the log reader are used.
+the simulator and the log reader are used. Beside the stops, the drives of test17run's shape
+and that RTK log give the free INS's 1.5-s reading error, the statistic a change to the
+simulated accelerometer must keep (:func:`submit_closures`).
 """
 from __future__ import annotations
 
@@ -52,14 +54,22 @@ GAIN_MIN_SPEED_MPS = 0.003
 SIM_SOURCES: dict[str, tuple[str, tuple[int, ...], str]] = {
     'sim Pathfinder IMU, test17run shape': ('straight', (0, 1, 2, 3), 'real test17run'),
     'sim Pathfinder IMU, s5t1 shape': ('stop_and_go', (0, 1, 2), 'real s5t1'),
+    'sim Pathfinder IMU motion-bound, test17run shape': ('straight_motion_bound', (0, 1, 2, 3),
+                                                         'real test17run'),
+    'sim Pathfinder IMU motion-bound, s5t1 shape': ('stop_and_go_motion_bound', (0, 1, 2),
+                                                    'real s5t1'),
     'sim consumer IMU 30 Hz (skid_steer_30hz_no_slip)': ('consumer', (0, 1, 2), ''),
 }
 """The simulated sources: label -> (drive, seeds, the real log of the same shape or '').
 The Pathfinder IMU is the measured grade with the measured chassis rocking
 (:func:`~slip_estimator.sim.drives.measured_ground`) over ground without slip, on drives
 shaped like each real log (:func:`~slip_estimator.sim.drives.straight_scenario`: one 52-s
-leg; :func:`~slip_estimator.sim.drives.stop_and_go_scenario`: nine 10-16-s legs); the consumer
-robot (vibrating 30-Hz IMU, one 10-s stop after ~240 s) has no real log to be judged against."""
+leg; :func:`~slip_estimator.sim.drives.stop_and_go_scenario`: nine 10-16-s legs); a drive
+ending in ``_motion_bound`` has its vibration without white content at 0 Hz
+(:meth:`~slip_estimator.sim.imu_grades.VibrationConfig.pathfinder_measured`); the consumer
+robot (vibrating 30-Hz IMU, one 10-s stop after ~240 s) has no real log to be judged against.
+The drives of test17run's shape, like that RTK log, also give the free INS's 1.5-s reading
+error (:func:`~slip_estimator.validation.sim_vs_real.reading_error_mps`)."""
 
 
 def stop_closures(t_s: np.ndarray, roll_rad: np.ndarray, pitch_rad: np.ndarray,
@@ -133,23 +143,35 @@ def run_closures(params: Any, data: Any) -> list[dict[str, float]]:
     return rec.closures()
 
 
-def _real_task(args: tuple[str, str, dict[str, Any]]) -> list[dict[str, float]]:
+Run = tuple[list[dict[str, float]], float]
+"""One drive's stops and its 1.5-s reading error (m/s; NaN where it has none)."""
+
+
+def _real_task(args: tuple[str, str, dict[str, Any]]) -> Run:
     from slip_estimator.core.params import Params
+    from slip_estimator.effects import gnss_speed
     from slip_estimator.pathfinder import read_pathfinder_mat
     from slip_estimator.streams import from_pathfinder
+    from slip_estimator.validation.sim_vs_real import RTK_LOGS, reading_error_mps
 
-    _label, mat, params = args
+    label, mat, params = args
     p = Params.from_dict(params)
-    return run_closures(p, from_pathfinder(read_pathfinder_mat(mat), p))
+    log = read_pathfinder_mat(mat)
+    data = from_pathfinder(log, p)
+    reading = math.nan
+    if label.removeprefix('real ') in RTK_LOGS:
+        reading = reading_error_mps(p, data, gnss_speed(log, data.imu_ns * 1e-9))
+    return run_closures(p, data), reading
 
 
-def _sim_task(args: tuple[str, int]) -> list[dict[str, float]]:
+def _sim_task(args: tuple[str, int]) -> Run:
     from slip_estimator.sim import simulate
     from slip_estimator.sim.bag import sim_params
     from slip_estimator.sim.drives import (measured_ground, no_slip, stop_and_go_scenario,
                                            straight_scenario)
     from slip_estimator.sim.robots import ROBOTS
     from slip_estimator.streams import from_simulation
+    from slip_estimator.validation.sim_vs_real import reading_error_mps
 
     label, seed = args
     drive = SIM_SOURCES[label][0]
@@ -157,33 +179,43 @@ def _sim_task(args: tuple[str, int]) -> list[dict[str, float]]:
         profile = ROBOTS['skid_steer_30hz_no_slip'](seed)
         r = simulate(profile.scenario)
         p = sim_params(r, profile.wheel_input, profile.joint_columns)
-    else:
-        shape = straight_scenario if drive == 'straight' else stop_and_go_scenario
-        r = simulate(measured_ground(no_slip(shape(seed))))
-        p = sim_params(r)
-    return run_closures(p, from_simulation(r, p))
+        return run_closures(p, from_simulation(r, p)), math.nan
+    straight = drive.startswith('straight')
+    shape = straight_scenario if straight else stop_and_go_scenario
+    r = simulate(measured_ground(no_slip(shape(seed)),
+                                 motion_bound=drive.endswith('_motion_bound')))
+    p = sim_params(r)
+    data = from_simulation(r, p)
+    return (run_closures(p, data),
+            reading_error_mps(p, data, r.speed_mps) if straight else math.nan)
 
 
-def _task(args: tuple[Any, ...]) -> list[dict[str, float]]:
+def _task(args: tuple[Any, ...]) -> Run:
     return _real_task(args) if len(args) == 3 else _sim_task(args)
 
 
 def submit_closures(pool: Executor, real: dict[str, tuple[str | Path, Any]]
-                    ) -> Callable[[], dict[str, list[dict[str, float]]]]:
+                    ) -> Callable[[], tuple[dict[str, list[dict[str, float]]],
+                                            dict[str, list[float]]]]:
     """Submit every source's drives to ``pool``; returns the call that waits for them and
-    gives every stop by source label (``real <log>`` for a real log). ``real`` maps a log's name to its
-    ``.mat`` path and the shipped params for it; the simulated sources are :data:`SIM_SOURCES`
-    (their default params: the shipped model)."""
+    gives every stop by source label (``real <log>`` for a real log) and, by label, each
+    drive's 1.5-s reading error where it has one (the RTK log, the simulated drives of its
+    shape). ``real`` maps a log's name to its ``.mat`` path and the shipped params for it; the
+    simulated sources are :data:`SIM_SOURCES` (their default params: the shipped model)."""
     tasks: list[tuple[Any, ...]] = [(label, seed) for label, (_, seeds, _) in
                                     SIM_SOURCES.items() for seed in seeds]
     tasks += [(f'real {name}', str(mat), p.to_dict()) for name, (mat, p) in real.items()]
     futures = [pool.submit(_task, a) for a in tasks]
 
-    def gather() -> dict[str, list[dict[str, float]]]:
-        out: dict[str, list[dict[str, float]]] = {}
+    def gather() -> tuple[dict[str, list[dict[str, float]]], dict[str, list[float]]]:
+        stops: dict[str, list[dict[str, float]]] = {}
+        readings: dict[str, list[float]] = {}
         for a, f in zip(tasks, futures):
-            out.setdefault(a[0], []).extend(f.result())
-        return out
+            run_stops, reading = f.result()
+            stops.setdefault(a[0], []).extend(run_stops)
+            if math.isfinite(reading):
+                readings.setdefault(a[0], []).append(reading)
+        return stops, readings
     return gather
 
 

@@ -302,7 +302,7 @@ def run_study(data_dir: Path = DEFAULT_DATA_DIR, work_dir: Path | None = None,
                            inp.params.replace(**cfg_d(measured, name)))
                     for name, inp in inputs.items()})
                 evidence = collect_evidence(inputs, measured, results, True, progress)
-                evidence['stop_tilt'] = stop_tilt()
+                evidence['stop_tilt'], evidence['reading_error'] = stop_tilt()
         return Study(list(configs), list(inputs), measured, results, evidence,
                      time.perf_counter() - t_start, jobs)
     finally:

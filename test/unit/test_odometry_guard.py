@@ -120,25 +120,26 @@ def test_a_fallback_of_a_measuring_span_holds_through_still_wheels():
     correction) and the published one stays at 3 m, named as held through a stop; a moving
     verdict on a fine INS ends the fallback, and the fused increments follow again. A
     fallback of 1 s (a rim slowing into the stop) does not hold, nor does a still verdict
-    without a fallback before it."""
+    without a fallback before it. ``wheel`` says True only where a fallback of a span ends."""
     def still(t_s: float) -> GuardDecision:
         return decide(SlipEstimate(round(t_s * NS), 0.0, 0.1, 0, 0.0, 0.1, 0.0), 0.5 ** 2,
                       False, 3.5)
     guard = OdometryGuard()
-    guard.wheel(decide(_slip(1.0, 0.0, 4), 0.5 ** 2, False, 3.5))  # at t = 0
+    assert not guard.wheel(decide(_slip(1.0, 0.0, 4), 0.5 ** 2, False, 3.5))  # at t = 0
     guard.publish(_odometry(0.0, (0.0, 0.0, 0.0), 0.0))
     guard.publish(_odometry(3.0, (1.5, 0.0, 0.0), 0.0))
     assert still(3.0).still and not still(3.0).fallback
-    guard.wheel(still(3.0))
+    assert not guard.wheel(still(3.0))
     out = guard.publish(_odometry(4.0, (1.7, 0.0, 0.0), 0.0))
     np.testing.assert_allclose(out.p_ob_o, (3.0, 0.0, 0.0), atol=1e-12)
     assert guard.fallback and 'held through a stop' in guard.figures()[1]
-    guard.wheel(decide(_slip(1.0, 0.98), 0.01 ** 2, False, 3.5))
+    fine = SlipEstimate(5 * NS, 0.02, 0.1, 1, 0.98, 0.1, 1.0)
+    assert guard.wheel(decide(fine, 0.01 ** 2, False, 3.5))  # ended after 5 s: True
     out = guard.publish(_odometry(5.0, (2.7, 0.0, 0.0), 0.0))
     np.testing.assert_allclose(out.p_ob_o, (4.0, 0.0, 0.0), atol=1e-12)
     short = OdometryGuard()
     short.wheel(decide(_slip(1.0, 0.0, 4), 0.5 ** 2, False, 3.5))
-    short.wheel(still(1.0))
+    assert not short.wheel(still(1.0))  # ended, but short of a span: False
     assert not short.fallback
     fresh = OdometryGuard()
     fresh.wheel(still(3.0))

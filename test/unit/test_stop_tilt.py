@@ -103,3 +103,22 @@ def test_the_stop_and_go_drive_has_s5t1s_shape() -> None:
     assert segs[0].speed_mps == segs[-1].speed_mps == 0.0
     assert all(10.0 <= s.duration_s <= 16.0 and 0.4 <= s.speed_mps <= 0.7 for s in legs)
     assert all(2.0 <= s.duration_s <= 3.5 and s.speed_mps == 0.0 for s in stops)
+
+
+def test_the_section_judges_each_reading_error_against_its_real_log() -> None:
+    """Mean reading errors 0.09 (real), 0.08 (x0.89: reproduced) and 0.02 (x0.22: smaller)."""
+    from slip_estimator.validation.sections_evidence import stop_tilt_section
+
+    stop = {'drive_s': 50.0, 'first_roll_deg': 0.03, 'first_pitch_deg': 0.04,
+            'level_roll_deg': 0.03, 'level_pitch_deg': 0.04, 'v_stop_mps': 0.02}
+    closures = {'real test17run': [stop], 'sim Pathfinder IMU, test17run shape': [stop]}
+    readings = {'real test17run': [0.09],
+                'sim Pathfinder IMU, test17run shape': [0.07, 0.09],
+                'sim Pathfinder IMU motion-bound, test17run shape': [0.01, 0.03]}
+    table = {line.split(' | ')[0][2:]: line.split(' | ')
+             for line in stop_tilt_section(closures, readings)
+             if line.startswith('| sim') and len(line.split(' | ')) == 5}
+    bound = table['sim Pathfinder IMU motion-bound, test17run shape']
+    assert bound[2] == '0.020' and bound[3] == '0.22' and 'smaller' in bound[4]
+    plain = table['sim Pathfinder IMU, test17run shape']
+    assert plain[2] == '0.080' and plain[3] == '0.89' and 'reproduced' in plain[4]

@@ -11,13 +11,13 @@ from slip_estimator.core.filter import ErrorStateFilter
 from slip_estimator.core.frames import rpy_to_dcm
 from slip_estimator.core.history import ForwardSpeedHistory
 from slip_estimator.core.measurements import ForwardSpeed
-from slip_estimator.core.odometry_guard import OdometryGuard
+from slip_estimator.core.odometry_guard import OdometryGuard, decide
 from slip_estimator.core.params import Params
 from slip_estimator.core.planet import EARTH
 from slip_estimator.core.slip_model.wheel_aid import WheelAid
 from slip_estimator.core.state import VEL, NavState
 from slip_estimator.core.supervisor import Supervisor
-from slip_estimator.core.types import WheelSample
+from slip_estimator.core.types import SlipEstimate, WheelSample
 from slip_estimator.core.updater import Updater
 from slip_estimator.core.wheel_update import WheelUpdate
 
@@ -74,3 +74,33 @@ def test_an_unknown_slip_is_counted():
     wu = driving_north()
     est = wu.unknown(7, 0.5)
     assert (est.stamp_ns, est.slip_class) == (7, -1) and wu.counters['slip_unknown'] == 1
+
+
+def test_the_end_of_a_fallback_of_a_measuring_span_forgets_the_cross_track_correlations():
+    """Heading north, fallen back 3 s before (a coarse INS, 0.5 m/s of error at 1 m/s); the
+    fused position's error correlated 0.9 with the speed's, north (along track) and east
+    (across). The next sample, on a fine INS, ends the fallback: the east (cross-track)
+    position keeps its variance but no correlation with any other error (the aid's next speed
+    updates would otherwise move it sideways for an error the published track, on the wheels,
+    never had); the north one keeps its correlation (the published track shares the along-track
+    error of the rim speed the INS was aided with). A sample that ends no fallback leaves both."""
+    def correlated() -> WheelUpdate:
+        wu = driving_north(1.0)
+        P = wu.filter.P
+        P[6, 3] = P[3, 6] = 0.9 * math.sqrt(P[6, 6] * P[3, 3])
+        P[7, 4] = P[4, 7] = 0.9 * math.sqrt(P[7, 7] * P[4, 4])
+        return wu
+    wu = correlated()
+    coarse = SlipEstimate(-3_000 * MS, 1.0, 0.1, 4, 0.0, 0.1, 1.0)
+    wu.odometry_guard.wheel(decide(coarse, 0.5 ** 2, False, 3.5))
+    assert wu.odometry_guard.fallback
+    east_var = wu.filter.P[7, 7]
+    assert wu.evaluate(WheelSample(200 * MS, 1.0)) is not None
+    assert not wu.odometry_guard.fallback
+    P = wu.filter.P
+    assert P[7, 7] == pytest.approx(east_var, rel=1e-9)
+    np.testing.assert_allclose(np.delete(P[7], 7), 0.0, atol=1e-12 * math.sqrt(P[7, 7]))
+    assert P[6, 3] > 0.5 * math.sqrt(P[6, 6] * P[3, 3])
+    kept = correlated()
+    kept.evaluate(WheelSample(200 * MS, 1.0))
+    assert kept.filter.P[7, 4] > 0.5 * math.sqrt(kept.filter.P[7, 7] * kept.filter.P[4, 4])
