@@ -139,8 +139,7 @@ class SlipChain:
                pitch_std_rad: float = 0.0, body_span_s: float | None = None,
                spread_scale_s: float = 1.0, start_speed_var: float = 0.0,
                body_window_s: tuple[float, float] | None = None,
-               rim_spun: bool = False, rest_offset_mps: float = 0.0,
-               run_ahead_return: bool = False) -> float:
+               rim_spun: bool = False, rest_offset_mps: float = 0.0) -> float:
         """The slip to hold after a measurement of ``measured`` at rim speed ``w`` and pitch
         ``pitch_rad`` (1-sigma ``pitch_std_rad``).
 
@@ -164,8 +163,6 @@ class SlipChain:
             start's free INS integrates that acceleration, and its speed errs to the offset's
             side by an amount nothing measured; the baseline before it, where it lies on the
             side the error hides, is held.
-        run_ahead_return : a rise from a run-ahead held since it was read downhill: the body
-            falling back onto the ground's slip, which the baseline is on any slope.
         """
         p = self.params
         if unmeasured:
@@ -260,7 +257,7 @@ class SlipChain:
                 return run[0]
             self._run = run
         base_pitch = self.baseline_pitch_rad
-        other_slope = base_pitch is not None and not run_ahead_return and \
+        other_slope = base_pitch is not None and \
             abs(pitch_rad - base_pitch) > SLOPE_RAD + _SLOPE_SIGMA * pitch_std_rad
         # A rim-spun change from a measured ground adds no measuring span's drift to what
         # the snap judges (test17run wheels x1.4 read 0.316, truth 0.31, snapped to 0.045);

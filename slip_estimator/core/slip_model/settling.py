@@ -52,8 +52,7 @@ def settle(s: ModelSample, measurement: SlipMeasurement, chain: SlipChain,
         s.pitch_std_rad, body_span_s, SCALES_S[-1], s.speed_var_mps2, body_window_s,
         anchor is not None and not anchor.body and rim_spun(anchor, measured, w, previous,
                                                             spread_var_mps2),
-        rest_offset_mps if from_rest else 0.0,
-        run_ahead.ground is not None and previous is not None and measured > previous)
+        rest_offset_mps if from_rest else 0.0)
     run_ahead.held(held, None if from_rest else previous, chain.baseline)
     return held
 
