@@ -902,3 +902,14 @@ def test_the_body_side_reanchors_once_after_a_gap_and_stays_quiet_for_its_window
     changes = [c for c in steps(QUIET_AFTER_GAP_S) if c is not None]
     assert changes and changes[0].side == 'body' and changes[0].anchor.body
     assert changes[0].decision.anchor and changes[0].decision.take_back_since_ns is None
+
+
+def test_the_body_side_is_quiet_after_a_run_ahead_returns():
+    """A run-ahead's return anchors the velocity on the ground's slip, a speed the INS did not
+    measure: the body side is quiet for QUIET_AFTER_GAP_S from it, without a re-anchor."""
+    from slip_estimator.core.slip_model.body_side import QUIET_AFTER_GAP_S, BodySide
+    side = BodySide(Params())
+    side.returned(round(10e9))
+    assert not side.gap_closed(round(10e9))
+    assert side.quiet(round((10.0 + QUIET_AFTER_GAP_S - 0.1) * 1e9))
+    assert not side.quiet(round((10.0 + QUIET_AFTER_GAP_S) * 1e9))

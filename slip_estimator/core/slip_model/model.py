@@ -220,6 +220,7 @@ class SlipModel:
             # The grade that pulled the body ahead of its wheels has eased: back on the
             # ground's slip, anchored there (the aid held the run-ahead's speed meanwhile).
             self.chain.returned()
+            self._body_side.returned(t_ns)
             self.slip_hold = ground
             self.step_test.clear()
             self._aided.clear()
