@@ -36,11 +36,12 @@ class _Builder:
 
     def add(self, duration_s: float, speed_mps: float = 0.0, yaw_rate_rps: float = 0.0,
             slip: float | None = None, spin_mps: float = 0.0, label: str = '',
-            speed_ramp_s: float = 2.0, control: str = 'wheel', slip_ramp_s: float = 1.5
-            ) -> float:
+            speed_ramp_s: float = 2.0, control: str = 'wheel', slip_ramp_s: float = 1.5,
+            grade_driven: bool = False) -> float:
         s = _low_slip(self.rng) if slip is None else slip
         self.segments.append(Segment(duration_s, speed_mps, yaw_rate_rps, s, spin_mps,
-                                     speed_ramp_s, label, control, slip_ramp_s))
+                                     speed_ramp_s, label, control, slip_ramp_s,
+                                     grade_driven=grade_driven))
         t0 = self.t_s
         self.t_s += duration_s
         return t0
@@ -165,7 +166,8 @@ def patch_scenario(seed: int = 0, duration_s: float = 600.0, rough: bool = False
                    noise_seed: int | None = None) -> ScenarioConfig:
     """A seeded random drive under wheel-rate control: legs of 30-60 s between stops, arcs,
     patches of 5-20 s whose slip is drawn across every class (0.1-0.85) and downhill runs
-    (-0.15 to -0.3) on hills placed under them; ``rough`` raises the terrain undulation and
+    (-0.15 to -0.3, developed as far as the local downhill grade drives the body ahead: see
+    :mod:`.truth`) on hills placed under them; ``rough`` raises the terrain undulation and
     the vibration (rough ground)."""
     rng = np.random.default_rng(seed)
     b = _Builder(rng)
@@ -187,14 +189,15 @@ def patch_scenario(seed: int = 0, duration_s: float = 600.0, rough: bool = False
                       slip_ramp_s=float(rng.uniform(0.5, 3.0)), label=f'patch s={s:.2f}')
                 last = 'patch'
             else:
-                # Down the far flank of a hill whose crest the rover passes as the run starts:
-                # the body runs ahead of its wheels only while the slope pulls it.
+                # Down the far flank of a hill (max grade 0.15) whose crest the rover passes
+                # half a sigma before the run starts: the body runs ahead of its held wheels
+                # only as far as the local downhill grade drives it (truth, step 2).
                 s = float(rng.uniform(-0.3, -0.15))
                 run_s = float(rng.uniform(6.0, 10.0))
                 t0 = b.add(run_s, speed, 0.0, slip=s, slip_ramp_s=1.5,
-                           label=f'downhill s={s:.2f}')
-                length_m = speed / (1.0 + s) * run_s
-                b.hill(t0, 0.15 * length_m, 0.6 * length_m)
+                           label=f'downhill s={s:.2f}', grade_driven=True)
+                sigma_m = 0.6 * speed / (1.0 + s) * run_s
+                b.hill(t0 - 0.5 * sigma_m / speed, 0.25 * sigma_m, sigma_m)
                 last = 'downhill'
         b.add(float(rng.uniform(3.0, 8.0)), 0.0, label='stop')
     b.add(8.0, label='final stop')

@@ -70,6 +70,10 @@ class Segment:
         rad/s: one side on softer ground or a side slope makes the body yaw while the wheels
         turn as for ``yaw_rate_rps - differential_yaw_rps`` (equal to it: the wheels say
         straight while the body yaws).
+    grade_driven : a negative slip (wheel control) is a run-ahead that the terrain's downhill
+        grade drives: it develops only as far as the local grade exceeds the rolling
+        resistance (:mod:`.truth`, step 2), zero on level or nose-up ground. Off: the scripted
+        slip regardless of the ground (drives that place it on a known downslope).
     """
 
     duration_s: float
@@ -82,6 +86,7 @@ class Segment:
     control: str = 'wheel'
     slip_ramp_s: float = 1.5
     differential_yaw_rps: float = 0.0
+    grade_driven: bool = False
 
     def __post_init__(self) -> None:
         if not self.duration_s > 0.0:

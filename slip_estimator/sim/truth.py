@@ -8,6 +8,15 @@ Truth (all on a flat local tangent plane, ENU axes at the start = ROS ``odom``):
    v / sqrt(1 + g_f^2) (cos psi, sin psi), where g_f is the terrain gradient along the heading,
    so the rover travels at speed v along the surface; z = terrain(x, y). This is solved by a
    fixed-point iteration (the gradient depends on the position) to < 1e-9 m.
+   A grade-driven run-ahead (``Segment.grade_driven``) is gravity's: under wheel control a
+   negative scripted slip s_c (the body running ahead of held wheels) develops only as far
+   as the local downhill grade of the terrain under the rover (hills + undulation, the slope
+   the IMU sees), sin(theta) = -g_f / sqrt(1 + g_f^2), exceeds the rolling resistance:
+   s = s_c * S((sin theta - c_rr) / (G_FULL - c_rr)), S the C2 smootherstep clipped to
+   [0, 1], c_rr = ROLLING_RESISTANCE (firm soil) and G_FULL the grade at which the scripted
+   slip is fully developed. On level or nose-up ground the held wheels hold the body (s = 0).
+   The body speed then depends on the position, so the path is solved forward in pieces
+   (0.25 s inside such a run-ahead), each by the fixed point above.
 3. base_link attitude ``C_base_o = Rz(psi) Ry(pitch) Rx(roll)`` with pitch = -atan(g_f) and
    roll = atan(g_l / sqrt(1 + g_f^2)) (g_l: gradient to the left): x and y of base_link lie
    in the terrain tangent plane, and the base_link velocity is (v, 0, 0) in FLU. Optional
@@ -45,6 +54,12 @@ from slip_estimator.sim.scenario import WHEEL_IS_LEFT, ScenarioConfig
 
 MOVING_SPEED_THRESHOLD_MPS = 0.02
 """Below this body speed and mean rim speed the rover is 'not moving' (slip class 0)."""
+ROLLING_RESISTANCE = 0.05
+"""Rolling-resistance coefficient of the rover on firm soil: a downhill grade (sine of the
+slope) below it does not drive the body ahead of held wheels (module docstring, step 2)."""
+G_FULL = 0.15
+"""Downhill grade (sine of the slope, ~8.6 deg) at which a scripted run-ahead slip is fully
+developed."""
 
 
 # --- slip maths (paper eq. 1) -------------------------------------------------------------------
@@ -147,9 +162,10 @@ def _fine_grid(cfg: ScenarioConfig) -> _FineGrid:
 
 
 def _drive_profiles(cfg: ScenarioConfig, t: np.ndarray
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Body speed v (m/s), heading rate (rad/s), slip and wheel spin (m/s) on the fine grid,
-    blended from the segment targets under wheel-rate or body-speed control."""
+                    ) -> tuple[_Drive, np.ndarray, np.ndarray]:
+    """Commanded speed, control and scripted slip, heading rate (rad/s) and wheel spin (m/s)
+    on the fine grid, blended from the segment targets under wheel-rate or body-speed
+    control."""
     starts = np.cumsum([0.0] + [s.duration_s for s in cfg.segments[:-1]])
     segs = cfg.segments
     # A log that starts in motion begins at the first segment's targets (no ramp from rest).
@@ -167,9 +183,45 @@ def _drive_profiles(cfg: ScenarioConfig, t: np.ndarray
     # slip sets the body speed; body control (0): the body speed is scripted.
     wheel_ctl = np.clip(_profile(t, starts, [float(s.control == 'wheel') for s in segs],
                                  [1.0] * len(segs), float(segs[0].control == 'wheel')), 0.0, 1.0)
-    v = wheel_ctl * cmd / _slip_gain(s_cmd) + (1.0 - wheel_ctl) * cmd
     spin = (1.0 - wheel_ctl) * spin
-    return v, psi_dot, s_cmd, spin
+    # a negative slip follows the grade if the segment that set it says so (from its start)
+    grade_w = np.zeros_like(t)
+    for t0, seg in zip(starts, segs):
+        if seg.slip < 0.0:
+            grade_w[t >= t0] = float(seg.grade_driven)
+    return _Drive(cmd, wheel_ctl * grade_w, wheel_ctl, s_cmd), psi_dot, spin
+
+
+@dataclass(frozen=True)
+class _Drive:
+    """Commanded speed ``cmd`` (m/s), weights of grade-driven run-ahead and of wheel control,
+    and scripted slip on the fine grid; the slip and body speed that the terrain's grade lets
+    develop (module docstring, step 2)."""
+
+    cmd: np.ndarray
+    grade_w: np.ndarray
+    wheel_ctl: np.ndarray
+    s_cmd: np.ndarray
+
+    @property
+    def grade_driven(self) -> np.ndarray:
+        """Where the body speed depends on the grade: a grade-driven run-ahead."""
+        return (self.s_cmd < 0.0) & (self.grade_w > 0.0)
+
+    def slip(self, g_f: np.ndarray, sl: slice = slice(None)) -> np.ndarray:
+        """Slip on ``sl`` given the forward gradient there: a run-ahead scaled by the downhill
+        grade beyond the rolling resistance, zero on level or nose-up ground."""
+        sin_down = -g_f / np.sqrt(1.0 + g_f * g_f)
+        drive = _smootherstep((sin_down - ROLLING_RESISTANCE) / (G_FULL - ROLLING_RESISTANCE))
+        held = np.minimum(self.s_cmd[sl], 0.0) * self.grade_w[sl]
+        return self.s_cmd[sl] - held * (1.0 - drive)
+
+    def speed(self, g_f: np.ndarray | None, sl: slice = slice(None)) -> np.ndarray:
+        """Body speed on ``sl``: held rim speed / K(s) under wheel control, else scripted;
+        ``g_f`` None: at the scripted slip (the path planned on flat ground)."""
+        w = self.wheel_ctl[sl]
+        s = self.s_cmd[sl] if g_f is None else self.slip(g_f, sl)
+        return w * self.cmd[sl] / _slip_gain(s) + (1.0 - w) * self.cmd[sl]
 
 
 def _place_terrain(cfg: ScenarioConfig, t: np.ndarray, xy_flat: np.ndarray,
@@ -194,22 +246,38 @@ def _place_terrain(cfg: ScenarioConfig, t: np.ndarray, xy_flat: np.ndarray,
                    truth_rng.uniform(0.0, 2.0 * math.pi, 2))
 
 
-def _surface_path(terrain: Terrain, v: np.ndarray, u_fwd: np.ndarray, u_left: np.ndarray,
+def _pieces(coupled: np.ndarray, piece_n: int) -> list[tuple[int, int]]:
+    """Index ranges [i0, i1] (sharing their ends) that split the grid where ``coupled``
+    changes and every ``piece_n`` samples inside it."""
+    n = len(coupled)
+    cuts = {0, n - 1}
+    cuts.update((np.flatnonzero(np.diff(coupled.astype(np.int8))) + 1).tolist())
+    cuts.update(np.flatnonzero(coupled & (np.arange(n) % piece_n == 0)).tolist())
+    b = sorted(cuts)
+    return list(zip(b[:-1], b[1:]))
+
+
+def _surface_path(terrain: Terrain, drive: _Drive, u_fwd: np.ndarray, u_left: np.ndarray,
                   xy_flat: np.ndarray, h: float
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Odom position ``p_o`` (N, 3) of the rover driving at speed v along the surface, and
-    the terrain gradients forward ``g_f`` and to the left ``g_l``. Anchors ``terrain`` at the
-    start (sets its ``z0_m`` and ``xy_offset_m``)."""
-    # fixed point: horizontal speed depends on the slope, the slope on the position
-    xy = xy_flat
-    for _ in range(30):
-        _, grad = terrain.height_and_gradient(xy)
-        g_f = (grad * u_fwd).sum(axis=1)
-        xy_new = cumtrapz((v / np.sqrt(1.0 + g_f * g_f))[:, None] * u_fwd, h)
-        change = np.max(np.abs(xy_new - xy))
-        xy = xy_new
-        if change < 1e-10:
-            break
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Odom position ``p_o`` (N, 3) of the rover driving at its body speed along the surface,
+    the terrain gradients forward ``g_f`` and to the left ``g_l``, and the body speed v.
+    Anchors ``terrain`` at the start (sets its ``z0_m`` and ``xy_offset_m``)."""
+    # fixed point: horizontal speed depends on the slope, the slope on the position; where
+    # the body speed depends on the grade (a run-ahead) in pieces short enough to contract
+    xy = xy_flat.copy()
+    for i0, i1 in _pieces(drive.grade_driven, max(1, int(round(0.25 / h)))):
+        sl = slice(i0, i1 + 1)
+        xy[i0 + 1:i1 + 1] += xy[i0] - xy_flat[i0]
+        for _ in range(40):
+            _, grad = terrain.height_and_gradient(xy[sl])
+            g_f = (grad * u_fwd[sl]).sum(axis=1)
+            v = drive.speed(g_f, sl)
+            xy_new = xy[i0] + cumtrapz((v / np.sqrt(1.0 + g_f * g_f))[:, None] * u_fwd[sl], h)
+            change = np.max(np.abs(xy_new - xy[sl]))
+            xy[sl] = xy_new
+            if change < 1e-10:
+                break
     z, grad = terrain.height_and_gradient(xy)
     g_f = (grad * u_fwd).sum(axis=1)
     g_l = (grad * u_left).sum(axis=1)
@@ -217,7 +285,7 @@ def _surface_path(terrain: Terrain, v: np.ndarray, u_fwd: np.ndarray, u_left: np
     p_o = np.column_stack([xy - xy[1], z - z0])
     terrain.z0_m = float(z0)
     terrain.xy_offset_m = xy[1].copy()
-    return p_o, g_f, g_l
+    return p_o, g_f, g_l, drive.speed(g_f)
 
 
 @dataclass(frozen=True)
@@ -302,15 +370,15 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
     """Exact truth kinematics; draws the terrain from the truth seed."""
     grid = _fine_grid(cfg)
     t, h = grid.t_s, grid.h_s
-    v, psi_dot, s_cmd, spin = _drive_profiles(cfg, t)
+    drive, psi_dot, spin = _drive_profiles(cfg, t)
     yaw0 = heading_to_yaw_enu(cfg.site.heading_deg)
     psi = yaw0 + cumtrapz(psi_dot, h)
     u_fwd = np.stack([np.cos(psi), np.sin(psi)], axis=1)
     u_left = np.stack([-np.sin(psi), np.cos(psi)], axis=1)
-    xy_flat = cumtrapz(v[:, None] * u_fwd, h)
+    xy_flat = cumtrapz(drive.speed(None)[:, None] * u_fwd, h)
     terrain = _place_terrain(cfg, t, xy_flat, u_fwd, u_left,
                              np.random.default_rng(cfg.truth_seed))
-    p_o, g_f, g_l = _surface_path(terrain, v, u_fwd, u_left, xy_flat, h)
+    p_o, g_f, g_l, v = _surface_path(terrain, drive, u_fwd, u_left, xy_flat, h)
 
     # attitude and velocity of base_link; angular rate by central differences, O(h^2)
     pitch = -np.arctan(g_f)
@@ -337,7 +405,7 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
     inertial = _inertial_truth(cfg, C, v_o, omega_eb_b, h)
 
     # wheels: side speeds and rim speeds
-    K = _slip_gain(s_cmd)
+    K = _slip_gain(drive.slip(g_f))
     half_T = 0.5 * cfg.rover.track_width_m * cfg.rover.effective_track_factor
     # the yaw rate the wheels turn for: less what differential slip adds to the body's
     starts = np.cumsum([0.0] + [s.duration_s for s in cfg.segments[:-1]])

@@ -11,8 +11,9 @@ from slip_estimator.core.frames import C_ENU_NED, rotvec_to_dcm, rpy_to_dcm
 from slip_estimator.core.planet import EARTH, earth_rate_n, gravity_n
 from slip_estimator.sim.drives import default_scenario, short_scenario
 from slip_estimator.sim.rover import SimResult, simulate
-from slip_estimator.sim.scenario import (WHEEL_IS_LEFT, WHEEL_JOINT_NAMES, ImuErrorConfig,
-                                         RoverConfig, Segment, TerrainConfig)
+from slip_estimator.sim.scenario import (WHEEL_IS_LEFT, WHEEL_JOINT_NAMES, HillSpec,
+                                         ImuErrorConfig, RoverConfig, Segment, TerrainConfig)
+from slip_estimator.sim.truth import G_FULL, ROLLING_RESISTANCE
 
 
 @pytest.fixture(scope='module')
@@ -368,6 +369,7 @@ def test_wheel_control_holds_the_rim_speed_and_slows_the_body() -> None:
 
 
 def test_body_runs_ahead_of_the_wheels_downhill() -> None:
+    """A scripted run-ahead (not grade-driven): the body at r w / (1 + s) on any ground."""
     segs = [Segment(10.0, label='stationary'), Segment(10.0, 0.5, slip=0.0),
             Segment(10.0, 0.5, slip=-0.2)]
     r = simulate(_flat(segs))
@@ -375,6 +377,33 @@ def test_body_runs_ahead_of_the_wheels_downhill() -> None:
     np.testing.assert_allclose(r.wheel_speed_true_mps[late], 0.5 / 0.8, atol=1e-9)
     assert np.all(r.wheel_speed_true_mps[late] > r.rim_speed_true_mps.mean(axis=1)[late])
     np.testing.assert_allclose(r.slip_true[late], -0.2, atol=1e-9)
+
+
+def test_body_runs_ahead_of_held_wheels_only_as_far_as_the_grade_drives_it() -> None:
+    """A grade-driven run-ahead is gravity's (truth, step 2): on level ground the held wheels hold
+    the body (no slip, body at the rim speed); down a hill the slip is the scripted one
+    scaled by the downhill grade beyond the rolling resistance (closed form on the truth
+    pitch), fully developed where the grade exceeds G_FULL, and the body outruns its wheels."""
+    segs = [Segment(10.0, label='stationary'), Segment(10.0, 0.5, slip=0.0),
+            Segment(10.0, 0.5, slip=-0.2, grade_driven=True)]
+    r = simulate(_flat(segs))
+    late = r.wheel_t_s > 22.0
+    np.testing.assert_allclose(r.slip_true[late], 0.0, atol=1e-12)
+    np.testing.assert_allclose(r.wheel_speed_true_mps[late], 0.5, atol=1e-9)
+
+    hill = TerrainConfig(hills=(HillSpec(18.0, 2.0, 4.0),), undulation_amplitude_m=0.0,
+                         hill_jitter_m=0.0)
+    r = simulate(_flat(segs).replace(terrain=hill))
+    sin_down = np.interp(r.wheel_t_s, r.imu_t_s, -r.C_base_o[:, 2, 0])
+    u = np.clip((sin_down - ROLLING_RESISTANCE) / (G_FULL - ROLLING_RESISTANCE), 0.0, 1.0)
+    late = r.wheel_t_s > 22.0
+    drive = u * u * u * (u * (6.0 * u - 15.0) + 10.0)  # the C2 smootherstep
+    np.testing.assert_allclose(r.slip_true[late], -0.2 * drive[late], atol=2e-4)
+    full = late & (sin_down > G_FULL)
+    assert full.sum() > 50 and np.all(np.abs(r.slip_true[full] + 0.2) < 1e-3)
+    rim = r.rim_speed_true_mps.mean(axis=1)
+    np.testing.assert_allclose(rim[late], 0.5, atol=1e-9)
+    np.testing.assert_allclose(r.wheel_speed_true_mps[full], 0.5 / 0.8, atol=1e-3)
 
 
 def test_body_control_spins_the_wheels_up_at_an_unchanged_body_speed() -> None:
@@ -408,15 +437,18 @@ def test_mixed_drive_has_both_mechanisms() -> None:
 
 
 def test_patch_drive_runs_downhill_on_real_slopes() -> None:
-    """A run-ahead needs a downhill pull: each downhill patch lies on a descending slope."""
+    """A run-ahead needs a downhill pull: on rough ground too (where the undulation's slope
+    rivals the hill's) the body runs ahead only where the ground is nose-down beyond the
+    rolling resistance, never on level or climbing ground."""
     from slip_estimator.sim import patch_scenario
 
-    r = simulate(patch_scenario(1, 300.0))
+    r = simulate(patch_scenario(0, 300.0, rough=True))
     nose_down = np.degrees(np.arcsin(-r.C_base_o[:, 2, 0]))  # FLU: pitch > 0 is nose down
     neg = r.slip_true < -0.1
-    assert neg.any()
+    assert neg.sum() > 100
     pitch_w = np.interp(r.wheel_t_s[neg], r.imu_t_s, nose_down)
-    assert 2.0 < np.median(pitch_w) < 12.0
+    assert pitch_w.min() > math.degrees(math.asin(ROLLING_RESISTANCE))
+    assert 4.0 < np.median(pitch_w) < 20.0
     assert set(np.unique(r.slip_class)) == {0, 1, 2, 3, 4}
 
 

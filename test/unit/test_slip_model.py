@@ -196,6 +196,45 @@ def test_a_run_ahead_starting_at_a_crest_is_kept():
                                                                                   abs=0.05)
 
 
+def test_a_run_ahead_ends_as_the_grade_eases():
+    """Gravity pulls the body ahead of its wheels only down a grade: the run-ahead read at
+    -8 deg fades over 15 s as the hill levels out, too slowly for the step test (a drift of
+    0.02 m/s per second). Once the ground ahead is within 2 deg of level the body is back on
+    the ground's slip (0.05); without that, the -0.25 was held onto the level (rough and
+    patches seeds: 44 s of a held -0.29 on ground of 0.06)."""
+    t, start = drive()
+    w = 0.5 * start
+    grade = smooth_step(t, 25.0, 2.0) * (1.0 - np.clip((t - 35.0) / 15.0, 0.0, 1.0))
+    s = 0.05 + (-0.25 - 0.05) * grade
+    v = np.where(s >= 0, w * (1.0 - s), w / (1.0 + s))
+    model, v_est = run(w, v, pitch_rad=np.radians(-8.0) * grade)
+    from slip_estimator.core.slip import slip_ratio_array
+    held = slip_ratio_array(v_est, w)
+    assert np.median(held[(t > 30.0) & (t < 35.0)]) == pytest.approx(-0.25, abs=0.05)
+    assert np.median(held[(t > 50.0) & (t < 60.0)]) == pytest.approx(0.05, abs=0.05)
+
+
+def test_the_run_ahead_check_remembers_the_ground_while_a_run_ahead_is_held():
+    """A change down to a run-ahead read nose down remembers the ground (the baseline, or
+    the hold before it without one) until the slope ahead eases; read on the level, or a
+    hold at or above zero, remembers nothing."""
+    from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
+    check = RunAheadCheck()
+    check.add(0, math.radians(-6.0))
+    check.held(-0.2, 0.1, None)
+    assert check.ground == 0.1 and check.returned() is None
+    check.held(-0.3, -0.2, 0.05)  # a further change down keeps the ground it left
+    check.add(int(1e8), math.radians(-1.0))  # levelling out (pitching up: no lookahead)
+    assert check.returned() == 0.1 and check.ground is None
+    check.held(-0.2, 0.1, 0.05)  # read on the level: not a run-ahead the grade pulls
+    assert check.ground is None
+    check.add(int(2e8), math.radians(-6.0))
+    check.held(-0.2, 0.1, 0.05)
+    assert check.ground == 0.05
+    check.held(0.02, -0.2, 0.05)
+    assert check.ground is None
+
+
 def test_run_ahead_check_judges_the_slope_ahead():
     """Pitch starting to fall at 3 deg/s: level by the pitch alone, but the smoothed rate puts
     the slope 2 s ahead beyond -2 deg, so a run-ahead of 0.3 is possible; pitching up it is
@@ -876,3 +915,14 @@ def test_the_body_side_reanchors_once_after_a_gap_and_stays_quiet_for_its_window
     changes = [c for c in steps(QUIET_AFTER_GAP_S) if c is not None]
     assert changes and changes[0].side == 'body' and changes[0].anchor.body
     assert changes[0].decision.anchor and changes[0].decision.take_back_since_ns is None
+
+
+def test_the_body_side_is_quiet_after_a_run_ahead_returns():
+    """A run-ahead's return anchors the velocity on the ground's slip, a speed the INS did not
+    measure: the body side is quiet for QUIET_AFTER_GAP_S from it, without a re-anchor."""
+    from slip_estimator.core.slip_model.body_side import QUIET_AFTER_GAP_S, BodySide
+    side = BodySide(Params())
+    side.returned(round(10e9))
+    assert not side.gap_closed(round(10e9))
+    assert side.quiet(round((10.0 + QUIET_AFTER_GAP_S - 0.1) * 1e9))
+    assert not side.quiet(round((10.0 + QUIET_AFTER_GAP_S) * 1e9))

@@ -24,7 +24,9 @@ What it assumes
   that variance takes the wheels' speed as the ground's.
 * **Absolute slip is anchored at rest** (ZUPT): each change is measured from the held slip
   before it, so errors chain until the next stop or a return to the ground's baseline.
-* A run-ahead needs a downhill pull; the same ground on another slope slips differently.
+* A run-ahead needs a downhill pull and lasts as long as the grade: where the ground ahead
+  levels out the body is back on the ground's slip; the same ground on another slope slips
+  differently.
 
 Where it fails (measured; docs/limits.md, docs/status.md, docs/sim-vs-real.md)
 ------------------------------------------------------------------------------

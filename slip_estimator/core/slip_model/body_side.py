@@ -1,7 +1,7 @@
 """Body-side change detection while a slip is held: a step of the free residual
 ``v_free - g(s_hold) w`` in the multi-scale step test (:mod:`.step_test`), anchored on velocity
 continuity from the aided samples before its onset (:meth:`~.aided_record.AidedRecord.before`),
-and quiet for ``QUIET_AFTER_GAP_S`` after an IMU gap. Speeds in m/s.
+and quiet for ``QUIET_AFTER_GAP_S`` after an IMU gap or a run-ahead's return. Speeds in m/s.
 
 A body-side change is anchored at its alarm on velocity continuity (the held model's speed at
 the onset plus the INS speed change since) by an update of the aid's variance, which moves the
@@ -29,12 +29,13 @@ from slip_estimator.core.slip_model.thresholds import (body_change_sigmas, sprea
 
 _NS = 1_000_000_000
 QUIET_AFTER_GAP_S = 4.0
-"""After an IMU gap the filter settles its attitude and biases: no body-side step test."""
+"""After an IMU gap (or a run-ahead's return) the filter settles its attitude and biases: no
+body-side step test."""
 
 
 class BodySide:
-    """The step test's alarms as changes, and the quiet window after an IMU gap (see the
-    module docstring)."""
+    """The step test's alarms as changes, and the quiet window after an IMU gap or a
+    run-ahead's return (see the module docstring)."""
 
     def __init__(self, params: Params) -> None:
         self.params = params
@@ -56,6 +57,13 @@ class BodySide:
         self._reanchor = False
         self._quiet_until_ns = t_ns + int(QUIET_AFTER_GAP_S * _NS)
         return True
+
+    def returned(self, t_ns: int) -> None:
+        """A held run-ahead is over and the velocity was anchored on the ground's slip, a
+        speed the INS did not measure: quiet as after a gap while the filter settles its tilt
+        to it (measured_no_slip seed 2: a step read 3.2 s after such a return, +0.4 on a
+        ground that never slips)."""
+        self._quiet_until_ns = t_ns + int(QUIET_AFTER_GAP_S * _NS)
 
     def quiet(self, t_ns: int) -> bool:
         """Within the quiet window after a gap: no body-side change, and the aid repairs."""

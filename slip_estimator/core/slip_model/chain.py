@@ -264,6 +264,11 @@ class SlipChain:
             self.ins_chain_var += spread_var
         return measured
 
+    def returned(self) -> None:
+        """A held run-ahead is over (:meth:`~.run_ahead.RunAheadCheck.returned`): the body is
+        back on the ground's slip, which ends the chain as a return to the baseline does."""
+        self.chain_var, self.ins_chain_var, self._run = 0.0, 0.0, None
+
     def guard_var_mps2(self, ins_var: float, held: float | None, w: float) -> float:
         """Body-speed variance the odometry guard judges, m^2/s^2: the INS's spread over a
         measuring span ``ins_var`` with the chain's since the last anchor added, as for the

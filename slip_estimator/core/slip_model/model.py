@@ -215,6 +215,17 @@ class SlipModel:
         z = g * w
         if self._body_side.gap_closed(t_ns):
             return AidDecision(z, p.wheel_aid_std_mps ** 2, anchor=True, repair=True)
+        ground = self._run_ahead.returned()
+        if ground is not None:
+            # The grade that pulled the body ahead of its wheels has eased: back on the
+            # ground's slip, anchored there (the aid held the run-ahead's speed meanwhile).
+            self.chain.returned()
+            self._body_side.returned(t_ns)
+            self.slip_hold = ground
+            self.step_test.clear()
+            self._aided.clear()
+            return AidDecision(speed_ratio(ground) * w, p.wheel_aid_std_mps ** 2, anchor=True,
+                               held_slip=ground)
         # Wheel side: the rim speed moved and the body did not follow (or the reverse).
         discrepant, change = self._wheel_side.check(s, g, self._rim, self._aided,
                                                     self.aid_noise_var, self.spread_var,

@@ -27,7 +27,8 @@ def settle(s: ModelSample, measurement: SlipMeasurement, chain: SlipChain,
     """The slip ``measurement``, finished at sample ``s``, settles on (see the module
     docstring). ``previous``: the hold before a change (None after a start);
     ``from_rest``: it started from a ZUPT-anchored stop, whose zero-velocity updates left
-    ``rest_offset_mps`` (:meth:`~.stop_clock.StopClock.rest_offset_mps`); ``spread_var_mps2``:
+    ``rest_offset_mps`` (:meth:`~.stop_clock.StopClock.rest_offset_mps`); ``run_ahead``: the
+    pitch, and the run-ahead held (told what is held now); ``spread_var_mps2``:
     the free residual's spread per step-test scale; ``noise_var_mps2``: the wheel/INS
     consistency noise."""
     w = s.w_mps
@@ -55,7 +56,9 @@ def settle(s: ModelSample, measurement: SlipMeasurement, chain: SlipChain,
                                                                      previous, spread_var_mps2),
         rest_offset_mps=rest_offset_mps if from_rest else 0.0)
     resolution = Resolution(spread_var_mps2[-1], SCALES_S[-1], wheel_change_mps(p, w))
-    return chain.settle(reading, resolution)
+    held = chain.settle(reading, resolution)
+    run_ahead.held(held, None if from_rest else previous, chain.baseline)
+    return held
 
 
 def rim_spun(anchor: Anchor, measured: float, w: float, previous: float | None,
