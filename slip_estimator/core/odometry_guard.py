@@ -25,7 +25,7 @@ The INS's speed error is the IMU's own measured error over a measuring span: the
 learned spread of the free residual's change (:attr:`SlipModel.spread_var`) at its longest
 scale, or its 1-s spread carried to that scale as a random walk, if larger (it is learned
 sooner); with the held level's chain variance added (the changes the INS alone read since
-the last anchor, :meth:`~slip_estimator.core.slip_model.chain.SlipChain.guard_var_mps2`): a
+the last anchor, :func:`~slip_estimator.core.slip_model.hold_variance.guard_var_mps2`): a
 hold chained on several changes is placed no better than their summed spread, unless it puts
 the body beyond ``RESOLVED_SIGMAS`` of the INS's spread from the rim speed. A change where the
 rim stepped and the body did not follow (the wheels spun up or gripped again) is the wheels',
@@ -37,7 +37,7 @@ that stayed stuck, which the free INS sees from a ZUPT far better than over a ru
 measuring span. A hold chained after a start in motion (no stop measured the ground: the
 chain's baseline is assumed) and moved off the assumed slip by changes the INS alone read adds
 the assumption's variance (``ASSUMED_SLIP_STD`` of the rim speed) to those changes'
-(:meth:`~slip_estimator.core.slip_model.chain.SlipChain.assumed_hold`), and such a fallback is
+(:func:`~slip_estimator.core.slip_model.hold_variance.assumed_hold`), and such a fallback is
 named ``assumed_hold`` in /diagnostics: on ``skid_steer_30hz`` seed 3 the fused track followed
 two of them (0.33 kept after its sand patch ended, -0.14 read at a patch's end, on ground of
 0.07) and ended 14.11 m off against the wheels + gyro's 9.75 (9.39 with the rule).
@@ -99,7 +99,8 @@ class GuardDecision:
     """the wheel sample's time, ns"""
     assumed_hold: bool = False
     """the INS error counts an assumed slip's: the held slip departs from a slip nothing
-    measured by changes the INS alone read (:meth:`SlipChain.assumed_hold`)"""
+    measured by changes the INS alone read
+    (:func:`~slip_estimator.core.slip_model.hold_variance.assumed_hold`)"""
 
     @property
     def reason(self) -> str:
@@ -126,7 +127,8 @@ def decide(est: SlipEstimate, ins_error_var_mps2: float, anchored: bool,
     0.045 m/s RMS off against the fused 0.039, as its ground slips by about 0.05.
     ``rim_steady``: the rim speed moved little since the last sample (see
     :meth:`OdometryGuard.publish`); ``assumed_hold``: ``ins_error_var_mps2`` counts an assumed
-    slip's variance (:meth:`SlipChain.assumed_hold`), named as the fallback's reason."""
+    slip's variance (:func:`~slip_estimator.core.slip_model.hold_variance.assumed_hold`),
+    named as the fallback's reason."""
     w = est.wheel_speed_mps
     speed = w if held_slip is None else w * speed_ratio(held_slip)
     err = math.sqrt(max(ins_error_var_mps2, 0.0))

@@ -195,6 +195,7 @@ def test_a_hold_on_an_assumed_slip_falls_back_and_is_named():
     the assumed slip, and one beyond 3.5 sigmas (0.5: 0.2 m/s), judge the INS alone."""
     from slip_estimator.core.params import Params
     from slip_estimator.core.slip_model.chain import SlipChain
+    from slip_estimator.core.slip_model.hold_variance import assumed_hold, guard_var_mps2
     from slip_estimator.core.slip_model.records import Resolution, SlipReading
     ins, w = 0.05 ** 2, 0.4
 
@@ -208,8 +209,8 @@ def test_a_hold_on_an_assumed_slip_falls_back_and_is_named():
 
     chain, held = chained(False)
     assert chain.assumed and held == 0.3 and chain.ins_chain_var == pytest.approx(ins)
-    assert chain.assumed_hold(held, ins, w)
-    var = chain.guard_var_mps2(ins, held, w)
+    assert assumed_hold(chain, held, ins, w)
+    var = guard_var_mps2(chain, ins, held, w)
     assert var == pytest.approx(ins + (0.1 * w) ** 2)
     d = decide(_slip(w, (1.0 - held) * w, 3), var, False, 3.5, assumed_hold=True)
     assert d.fallback and d.reason == 'assumed_hold'
@@ -219,13 +220,13 @@ def test_a_hold_on_an_assumed_slip_falls_back_and_is_named():
     values, note = guard.figures()
     assert values['odometry_fallback_reason'] == 'assumed_hold'
     assert note is not None and 'a slip no stop measured' in note
-    assert not chain.assumed_hold(0.0, ins, w)  # back at the assumed slip
-    assert chain.guard_var_mps2(ins, 0.0, w) == pytest.approx(ins)
-    assert not chain.assumed_hold(0.5, ins, w)  # 0.2 m/s: resolved
-    assert chain.guard_var_mps2(ins, 0.5, w) == pytest.approx(ins)
+    assert not assumed_hold(chain, 0.0, ins, w)  # back at the assumed slip
+    assert guard_var_mps2(chain, ins, 0.0, w) == pytest.approx(ins)
+    assert not assumed_hold(chain, 0.5, ins, w)  # 0.2 m/s: resolved
+    assert guard_var_mps2(chain, ins, 0.5, w) == pytest.approx(ins)
     rest, held = chained(True)
-    assert not rest.assumed and held == 0.3 and not rest.assumed_hold(held, ins, w)
-    assert rest.guard_var_mps2(ins, held, w) == pytest.approx(2 * ins)
+    assert not rest.assumed and held == 0.3 and not assumed_hold(rest, held, ins, w)
+    assert guard_var_mps2(rest, ins, held, w) == pytest.approx(2 * ins)
     d = decide(_slip(w, (1.0 - held) * w, 3), 2 * ins, False, 3.5)
     assert d.fallback and d.reason == 'coarse_ins'
 

@@ -17,6 +17,7 @@ import pytest
 
 from slip_estimator.core.params import Params
 from slip_estimator.core.slip import speed_ratio
+from slip_estimator.core.slip_model.hold_variance import guard_var_mps2, held_speed_var_mps2
 from slip_estimator.core.slip_model.model import CHANGE_LOOKBACK_S, Mode, SlipModel
 from slip_estimator.core.slip_model.records import Resolution, SlipReading
 from slip_estimator.core.slip_model.step_test import SCALES_S
@@ -459,14 +460,14 @@ def test_the_chain_holds_a_measurement_as_baseline_false_alarm_or_new_slip():
     assert settle(0.11, 0.40) == 0.08  # within the chain's spread of the baseline: that ground
     assert chain.chain_var == 0.0
     assert settle(0.30, 0.08) == 0.30  # a change
-    assert chain.held_speed_var_mps2(0.5, spread) == pytest.approx(2 * spread)
+    assert held_speed_var_mps2(chain, 0.5, spread) == pytest.approx(2 * spread)
     chain.settle(SlipReading(0.5, 0.3, 0.5, unmeasured=True, implausible_run_ahead=True), fine)
-    assert chain.assumed and chain.held_speed_var_mps2(0.5, spread) == pytest.approx(0.05 ** 2)
+    assert chain.assumed and held_speed_var_mps2(chain, 0.5, spread) == pytest.approx(0.05 ** 2)
     # Changes measured from the assumption add their spread to it (0.1 m/s each over 2.5 s).
     chain.settle(SlipReading(0.7, 0.3, 0.5), coarse)
     chain.settle(SlipReading(0.9, 0.7, 0.5), coarse)
     assert chain.assumed and chain.chain_var > 0.015
-    assert chain.held_speed_var_mps2(0.5, 0.01) == pytest.approx(chain.chain_var)
+    assert held_speed_var_mps2(chain, 0.5, 0.01) == pytest.approx(chain.chain_var)
 
 
 @pytest.mark.parametrize('rim_spun, held', [(True, 0.30), (False, 0.05)])
@@ -508,25 +509,25 @@ def test_the_guard_counts_the_chain_the_ins_alone_read_unless_the_hold_is_resolv
         held = chain.settle(SlipReading(measured, 0.3, 0.5, rim_spun=rim_spun), span)
         return chain, held
 
-    assert SlipChain(Params()).guard_var_mps2(ins, None, 0.5) == ins  # nothing chained
+    assert guard_var_mps2(SlipChain(Params()), ins, None, 0.5) == ins  # nothing chained
     chain, held = from_ground(0.05)
     assert held == 0.05 and chain.ins_chain_var == pytest.approx(0.0025)
-    assert chain.guard_var_mps2(ins, held, 0.5) == pytest.approx(ins + 0.0025)  # 0.025 m/s
+    assert guard_var_mps2(chain, ins, held, 0.5) == pytest.approx(ins + 0.0025)  # 0.025 m/s
     # A false alarm (the INS confirms the hold) grows the chain, not what the guard counts.
     assert chain.settle(SlipReading(0.06, 0.05, 0.5), span) == 0.05
     assert chain.chain_var == pytest.approx(0.005) and chain.ins_chain_var == pytest.approx(
         0.0025)
     chain, held = from_ground(0.05, rim_spun=True)
     assert chain.chain_var == pytest.approx(0.0025) and chain.ins_chain_var == 0.0
-    assert chain.guard_var_mps2(ins, held, 0.5) == ins
+    assert guard_var_mps2(chain, ins, held, 0.5) == ins
     chain, held = from_ground(0.6)
-    assert held == 0.6 and chain.guard_var_mps2(ins, held, 0.5) == ins  # 0.3 m/s: resolved
+    assert held == 0.6 and guard_var_mps2(chain, ins, held, 0.5) == ins  # 0.3 m/s: resolved
     chain = SlipChain(Params())
     coarse = Resolution(0.01, 1.0, 0.05)
     chain.settle(SlipReading(0.0, None, 0.5, unmeasured=True), coarse)  # zero slip, assumed
     assert chain.settle(SlipReading(0.5, 0.0, 0.5), coarse) == 0.5
-    assert chain.assumed and chain.guard_var_mps2(ins, 0.5, 0.5) == ins  # 0.25 m/s: resolved
-    assert chain.guard_var_mps2(ins, None, 0.5) == pytest.approx(0.01)  # the larger
+    assert chain.assumed and guard_var_mps2(chain, ins, 0.5, 0.5) == ins  # 0.25 m/s: resolved
+    assert guard_var_mps2(chain, ins, None, 0.5) == pytest.approx(0.01)  # the larger
 
 
 @pytest.mark.parametrize('rim_spins', [True, False])
@@ -553,7 +554,7 @@ def test_a_rim_spinning_up_at_a_steady_imu_is_not_published_as_the_fallback(rim_
     assert model.slip_hold is not None and model.slip_hold > 0.4
     assert chain.chain_var > 0.0
     ins = ins_speed_error_var(model.spread_var, SCALES_S)
-    guard = chain.guard_var_mps2(ins, model.slip_hold, float(w[k - 1]))
+    guard = guard_var_mps2(chain, ins, model.slip_hold, float(w[k - 1]))
     if rim_spins:
         assert chain.ins_chain_var == 0.0 and guard == ins
         rim = float(w[k - 1])
@@ -576,7 +577,8 @@ def test_a_ratchet_of_drift_sized_body_side_readings_does_not_climb_classes():
     span = Resolution(0.05 ** 2, 2.5, 0.05)
     def chain_after(second, gap_s):
         chain = SlipChain(Params())
-        chain.settle(SlipReading(0.06, None, 0.5, from_rest=True), Resolution(0.05 ** 2, 1.0, 0.05))
+        at_rest = Resolution(0.05 ** 2, 1.0, 0.05)
+        chain.settle(SlipReading(0.06, None, 0.5, from_rest=True), at_rest)
         first = chain.settle(SlipReading(0.30, 0.06, 0.5, body_window_s=(10.0, 13.0)), span)
         assert first == 0.30
         return chain.settle(
@@ -727,7 +729,7 @@ def test_a_start_from_rest_on_a_coarse_ins_takes_the_wheels_as_the_ground():
     assert chain.settle(SlipReading(-0.34, None, 0.8, from_rest=True, start_speed_var_mps2=0.09),
                         span) == 0.0
     assert chain.baseline == 0.0 and chain.assumed
-    assert chain.held_speed_var_mps2(0.8, 0.09) == pytest.approx((0.1 * 0.8) ** 2)
+    assert held_speed_var_mps2(chain, 0.8, 0.09) == pytest.approx((0.1 * 0.8) ** 2)
     assert chain.settle(SlipReading(-0.34, None, 0.8, from_rest=True), span) == -0.34
     assert not chain.assumed
     model = SlipModel(Params())

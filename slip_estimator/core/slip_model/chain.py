@@ -104,12 +104,6 @@ def coarse_ins(spread_var: float, w: float, fraction: float = _COARSE_INS_FRACTI
     return math.sqrt(spread_var) > fraction * abs(w)
 
 
-def _resolved(held: float | None, ins_var: float, w: float) -> bool:
-    """The hold ``held`` puts the body beyond ``RESOLVED_SIGMAS`` of the INS's spread
-    ``ins_var`` (m^2/s^2) from the rim speed ``w``: resolved from the rim whatever the chain."""
-    return abs((held or 0.0) * w) > RESOLVED_SIGMAS * math.sqrt(ins_var)
-
-
 class SlipChain:
     """The held slip's provenance: the ground's baseline, the chain's variance since the last
     anchor, and whether the hold rests on an assumption (see the module docstring)."""
@@ -130,11 +124,11 @@ class SlipChain:
         """Forget the chain (a stop or a re-initialised velocity); the baseline is kept."""
         self.chain_var = 0.0
         self.ins_chain_var = 0.0
-        """what the odometry guard counts of ``chain_var`` (:meth:`guard_var_mps2`): the
-        changes the INS alone read that moved the hold to a new level; none for a reading that
-        confirmed the hold (a false alarm, the INS's drift) or one whose rim stepped beyond
-        what the INS misses while the body did not follow (the wheels spinning up or gripping
-        again, ``rim_spun`` of :meth:`settle`: the INS resolved it)"""
+        """what the odometry guard counts of ``chain_var`` (:func:`~.hold_variance.
+        guard_var_mps2`): the changes the INS alone read that moved the hold to a new level;
+        none for a reading that confirmed the hold (a false alarm, the INS's drift) or one
+        whose rim stepped beyond what the INS misses while the body did not follow (the wheels
+        spinning up or gripping again, ``rim_spun`` of :meth:`settle`: the INS resolved it)"""
         self.assumed = False  # the held slip rests on an assumption, not a measurement
         self._run: tuple[float, float, float] | None = None  # (slip before, t0 s, sign)
         self._body_end_s: float | None = None  # the end of the last body-side measurement
@@ -268,50 +262,3 @@ class SlipChain:
         """A held run-ahead is over (:meth:`~.run_ahead.RunAheadCheck.returned`): the body is
         back on the ground's slip, which ends the chain as a return to the baseline does."""
         self.chain_var, self.ins_chain_var, self._run = 0.0, 0.0, None
-
-    def guard_var_mps2(self, ins_var: float, held: float | None, w: float) -> float:
-        """Body-speed variance the odometry guard judges, m^2/s^2: the INS's spread over a
-        measuring span ``ins_var`` with the chain's since the last anchor added, as for the
-        hold itself (:meth:`held_speed_var_mps2`), but only the changes the INS alone read
-        (``ins_chain_var``: where the rim stepped and the body did not follow, the wheels are
-        what changed; real test17run with its wheels spun x2.5 otherwise fell back onto the
-        spinning rim, 1.14 m/s off). On an assumed chain (a start in motion) the larger of the
-        two, and where the hold departs from the assumed slip (:meth:`assumed_hold`) the
-        assumption's variance (``ASSUMED_SLIP_STD`` of ``w``) is added to the chain: a change
-        the INS read from the rim-aided speed places the body relative to a slip nothing
-        measured, so its error is the assumption's and the change's together. The INS's
-        spread alone where the hold ``held`` puts the body more than ``RESOLVED_SIGMAS`` of it
-        from the rim speed ``w``: resolved from the rim whatever the chain (test17run's
-        injected body-side holds, 0.2-0.6 m/s from the rim at a chain of 0.11-0.15 m/s, were
-        otherwise published at the rim: forward-speed RMSE 0.203 -> 0.260 m/s; a tactical IMU
-        joined in motion held 0.41 on an uphill patch at 0.55 m/s, truth 0.55)."""
-        chain = self.ins_chain_var
-        if _resolved(held, ins_var, w):
-            return ins_var
-        if not self.assumed:
-            return ins_var + chain
-        if self.assumed_hold(held, ins_var, w):
-            chain += (ASSUMED_SLIP_STD * w) ** 2
-        return max(ins_var, chain)
-
-    def assumed_hold(self, held: float | None, ins_var: float, w: float) -> bool:
-        """True where the odometry guard judges the hold ``held`` on an assumption: a chain
-        that began in motion (:attr:`assumed`: no stop measured the ground) moved by changes
-        the INS alone read (``ins_chain_var``) to a hold off the assumed slip, and the hold
-        does not put the body beyond ``RESOLVED_SIGMAS`` of the INS's spread ``ins_var`` from
-        the rim speed ``w``. On the 30-Hz consumer robot (``skid_steer_30hz`` seed 3) such
-        holds, 0.33 kept 25 s after its sand patch ended and -0.14 read at a patch's end, on
-        ground of 0.07, put the fused track 4.0 m behind and 4.7 m ahead of the body where the
-        rim speed erred by 1.0 and 1.3 m (:mod:`~slip_estimator.core.odometry_guard`)."""
-        return self.assumed and self.ins_chain_var > 0.0 and held is not None and \
-            held != (self.baseline or 0.0) and not _resolved(held, ins_var, w)
-
-    def held_speed_var_mps2(self, w: float, spread_var: float) -> float:
-        """Body-speed variance of the held slip at rim speed ``w``, m^2/s^2: the INS spread of
-        a measurement plus the chain since the last anchor; ``ASSUMED_SLIP_STD`` of ``w`` if
-        nothing measured it (a start in motion), or the chain of changes measured from there
-        if wider (on the 30-Hz consumer robot four such changes ratcheted the hold from 0 to
-        0.46, truth 0.11, while the published sigma stayed at 0.10)."""
-        if self.assumed:
-            return max((ASSUMED_SLIP_STD * w) ** 2, self.chain_var)
-        return spread_var + self.chain_var

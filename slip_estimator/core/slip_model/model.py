@@ -65,6 +65,7 @@ from slip_estimator.core.slip_model.aid_decision import AidDecision
 from slip_estimator.core.slip_model.aided_record import ANCHOR_S, AidedRecord, ConsistencyNoise
 from slip_estimator.core.slip_model.body_side import BodySide
 from slip_estimator.core.slip_model.chain import SlipChain
+from slip_estimator.core.slip_model.hold_variance import held_speed_var_mps2
 from slip_estimator.core.slip_model.measurement import SlipMeasurement
 from slip_estimator.core.slip_model.records import Change, ModelSample
 from slip_estimator.core.slip_model.rim_memory import RimMemory
@@ -271,13 +272,14 @@ class SlipModel:
         return self._stop.stopping(t_ns, w, awaits_aid)
 
     def held_speed_var_mps2(self, w: float) -> float:
-        """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its aided
-        covariance knows nothing of the hold), m^2/s^2 (:meth:`SlipChain.held_speed_var_mps2`);
-        carried through a change's measurement and into a stop until the zero-speed aid (the
-        hold's error stays in the INS; at a stop it is not the body sliding on)."""
+        """Body-speed variance of the held slip at rim speed ``w`` beyond the filter's (its
+        aided covariance knows nothing of the hold), m^2/s^2
+        (:func:`~.hold_variance.held_speed_var_mps2`); carried through a change's measurement
+        and into a stop until the zero-speed aid (the hold's error stays in the INS; at a stop
+        it is not the body sliding on)."""
         if self.mode is not Mode.TRACK:
             return self._carried_var_mps2
-        return self.chain.held_speed_var_mps2(w, self.spread_var[-1])
+        return held_speed_var_mps2(self.chain, w, self.spread_var[-1])
 
     @property
     def aid_noise_var(self) -> float:

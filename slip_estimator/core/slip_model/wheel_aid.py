@@ -20,6 +20,7 @@ from slip_estimator.core.params import Params
 from slip_estimator.core.slip_confidence import Confidence, ReadingRecord
 from slip_estimator.core.slip_model.aid_decision import AidDecision
 from slip_estimator.core.slip_model.chain import ASSUMED_SLIP_STD, REJECTED_DOUBT
+from slip_estimator.core.slip_model.hold_variance import assumed_hold, guard_var_mps2
 from slip_estimator.core.slip_model.model import Mode, SlipModel
 from slip_estimator.core.slip_model.rim_memory import rim_steady
 from slip_estimator.core.slip_model.step_test import SCALES_S
@@ -118,7 +119,7 @@ class WheelAid:
     def odometry_decision(self, est: SlipEstimate) -> GuardDecision:
         """Whether the published odometry falls back to wheels + gyro at this sample
         (:func:`~slip_estimator.core.odometry_guard.decide` on the slip model's INS spread and
-        the held level's chain variance (:meth:`SlipChain.guard_var_mps2`: a hold chained on
+        the held level's chain variance (:func:`~.hold_variance.guard_var_mps2`: a hold chained on
         changes a consumer IMU alone measured is no better placed than that chain); a
         hold measured from rest with no change chained to it is anchored, and only on such a
         hold does the fallback carry a slip: the ground's as a start resolved it
@@ -137,10 +138,10 @@ class WheelAid:
         ground = chain.ground if self.held_slip is not None else None
         ins_var = ins_speed_error_var(model.spread_var, SCALES_S)
         w = est.wheel_speed_mps
-        return decide(est, chain.guard_var_mps2(ins_var, self.held_slip, w), anchored,
+        return decide(est, guard_var_mps2(chain, ins_var, self.held_slip, w), anchored,
                       self._resolving_sigmas, ground
                       if anchored and abs(ground or 0.0) <= ASSUMED_SLIP_STD else None,
-                      self._rim_steady, chain.assumed_hold(self.held_slip, ins_var, w))
+                      self._rim_steady, assumed_hold(chain, self.held_slip, ins_var, w))
 
     def decide(self, wheel: WheelSample, at: HistoryPoint, est: SlipEstimate,
                C_b_n: np.ndarray, turning: bool, tilt_std_rad: float = 0.0,
