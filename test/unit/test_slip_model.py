@@ -163,6 +163,32 @@ def test_a_wheel_side_change_takes_back_what_the_aid_taught_before_it(in_motion)
     assert np.median(1.0 - v_est[after] / w[after]) == pytest.approx(0.5, abs=0.05)
 
 
+@pytest.mark.parametrize('v_body_mps, held', [(-0.30, 0.0), (-0.10, 1.0), (0.0, 1.0)])
+def test_a_body_side_reading_against_the_wheels_is_the_ins_not_a_stuck_body(v_body_mps, held):
+    """After a body-side alarm from a hold of 0 the free INS reads the body at ``v_body_mps``
+    under wheels at 0.74 m/s (1-s spread 0.05 m/s, 2.5-s 0.15): a reading against the wheels
+    beyond 3.5 sigmas of the 1-s spread (0.175 m/s) is the INS (a tilt of 1.7 deg decelerates
+    it by 0.3 m/s within a second), and the hold stays at 0; a body within the spread of zero
+    is stuck (s = 1, extreme), as read. The slip clamp reads all three as s = 1."""
+    from slip_estimator.core.slip_model.aided_record import Anchor
+    from slip_estimator.core.slip_model.chain import SlipChain
+    from slip_estimator.core.slip_model.measurement import SlipMeasurement
+    from slip_estimator.core.slip_model.records import ModelSample
+    from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
+    from slip_estimator.core.slip_model.settling import settle
+    p = Params()
+    w = 0.74
+    measurement = SlipMeasurement(p.slip_measure_s)
+    measurement.start(Anchor(w, 5.0, True, t_ns=0))  # continuity at the alarm (hold 0)
+    t_ns = 0
+    while not measurement.add(t_ns, w, v_body_mps, v_body_mps, 0.0):
+        t_ns += int(DT_S * 1e9)
+    s = ModelSample(t_ns, w, v_body_mps, v_body_mps, 0.0, 0.0, (), 0.0)
+    chain = SlipChain(p)
+    assert settle(s, measurement, chain, RunAheadCheck(), 0.0, False, 0.0,
+                  [0.05 ** 2, 0.15 ** 2], 0.0, p) == held
+
+
 @pytest.mark.parametrize('pitch_deg, expected', [(-6.0, -0.25), (0.0, 0.05)])
 def test_body_running_ahead_of_its_wheels_needs_a_downhill(pitch_deg, expected):
     """Nose down on a 6 deg slope the body runs ahead of wheels held at their rate; on level

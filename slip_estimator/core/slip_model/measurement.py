@@ -94,6 +94,14 @@ class SlipMeasurement:
             return None
         return (self._vals[-1][4] - a.t_ns) * 1e-9
 
+    def body_speed_mps(self) -> float | None:
+        """The mean forward speed of a body-side measurement, m/s (the free INS since its
+        alarm); None for any other measurement."""
+        a = self.anchor
+        if a is None or not a.body or not self._vals:
+            return None
+        return sum(x[1] for x in self._vals) / len(self._vals)
+
     def slip(self, previous: float | None, continuity_sigma: float, noise_var: float,
              spread_var: float, spread_scale_s: float) -> float:
         """The slip measured (before the chain's decision). ``previous``: the hold before a
