@@ -33,13 +33,13 @@ def smooth_step(t_s: np.ndarray, t0_s: float, ramp_s: float) -> np.ndarray:
 def run(w_mps: np.ndarray, v_true_mps: np.ndarray, seed: int = 0, walk_mps_rts: float = 0.01,
         drift_mps2: float = 0.0, params: Params | None = None, pitch_rad=None,
         in_motion: bool = False, decisions: list | None = None, dt_s: float = DT_S,
-        aid_accel_mps2: float = 0.0, aid_gain: float = 0.5):
+        aid_accel_mps2: float = 0.0, aid_gain: float = 0.5, speed_var_mps2: float = 0.0):
     """Feed the sequences every ``dt_s`` (10 Hz); return the model and the per-sample filter
     speed (``in_motion``: the filter joined a moving rover, no stop anchors the first slip;
     ``decisions`` collects (sample time ns, decision) of every decision made;
     ``aid_accel_mps2``: the along-track acceleration the aid's tilt and bias corrections
     cause, which the free speed does without: it drifts by minus that; ``aid_gain``: how far
-    an aid pulls the speed per 0.1 s)."""
+    an aid pulls the speed per 0.1 s; ``speed_var_mps2``: the filter's speed variance)."""
     model = SlipModel(params or Params())
     if in_motion:
         model.reset(from_rest=False)
@@ -56,7 +56,7 @@ def run(w_mps: np.ndarray, v_true_mps: np.ndarray, seed: int = 0, walk_mps_rts: 
         moving = abs(w) >= 0.02  # as WheelAid.decide: the rim above the moving threshold
         pitch = 0.0 if pitch_rad is None else float(pitch_rad[k])
         d = model.step(int(k * dt_s * 1e9), float(w), v_est, float(v_free[k]), moving, False,
-                       pitch, aid_accel_mps2)
+                       pitch, aid_accel_mps2, speed_var_mps2=speed_var_mps2)
         if d is not None:
             if d.update:  # (a take-back alone leaves this stand-in's speed as it is)
                 v_est = d.z_mps if d.anchor else v_est + gain * (d.z_mps - v_est)
@@ -116,6 +116,28 @@ def test_a_body_side_alarm_takes_the_aids_teaching_back_once_a_stop_measured_the
             assert d.take_back_since_ns is None
         else:
             assert 20e9 < d.take_back_since_ns <= t_ns - SCALES_S[-1] * 1e9
+
+
+@pytest.mark.parametrize('speed_std_mps', [0.3, 0.07, 0.04])
+def test_a_body_side_alarm_takes_nothing_back_before_a_start_placed_the_ground(speed_std_mps):
+    """A start from rest at 0.6 m/s whose filter speed sigma is 0.3 m/s (beyond 15 % of the
+    rim speed: coarse) only assumes the baseline (zero slip) and resolves no ground: the aid is
+    still levelling the INS and nothing is taken back at the alarm (skid_steer_30hz seed 10:
+    a take-back from such a hold moved the pitch 0.37 -> 1.92 deg). At 0.07 m/s the start
+    measures its baseline without resolving the ground (0.12 of the rim speed, beyond
+    ASSUMED_SLIP_STD = 0.1), at 0.04 m/s it resolves it: taken back in both (skid_steer_30hz
+    seed 1 held 0.76 on ground of 0.04 for 7 s without that take-back: +4 m)."""
+    t, start = drive()
+    w = 0.6 * start
+    s = 0.05 + 0.45 * smooth_step(t, 25.0, 1.5)
+    decisions: list = []
+    model, _ = run(w, w * (1.0 - s), decisions=decisions, speed_var_mps2=speed_std_mps ** 2)
+    coarse = speed_std_mps > 0.15 * 0.6
+    assert model.chain.assumed == coarse
+    assert (model.chain.ground is None) == (speed_std_mps > 0.1 * 0.6)
+    alarms = [d for t_ns, d in decisions if d.anchor and d.held_slip is None and t_ns > 20e9]
+    assert model.changes['body'] >= 1 and alarms
+    assert all((d.take_back_since_ns is None) == coarse for d in alarms)
 
 
 @pytest.mark.parametrize('aid_accel_mps2', [0.2, -0.2])

@@ -73,8 +73,9 @@ class BodySide:
               aided: AidedRecord, baseline: float | None) -> Change | None:
         """Feed ``step_test`` the free residual of sample ``s`` at the held speed ratio
         ``g_hold``; the change at its alarm, anchored on the ``aided`` samples before the
-        onset, else None. ``baseline``: the ground's slip (None before a stop measured it:
-        then the aid's corrections are kept)."""
+        onset, else None. ``baseline``: the ground's slip (None before a stop measured it,
+        or while it is only assumed and no start resolved the ground: then the aid's
+        corrections are kept)."""
         p = self.params
         t_ns, w, v, v_free = s.t_ns, s.w_mps, s.v_mps, s.v_free_mps
         z = g_hold * w

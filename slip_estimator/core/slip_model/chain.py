@@ -134,6 +134,15 @@ class SlipChain:
         self._body_end_s: float | None = None  # the end of the last body-side measurement
         self.doubted = False  # a run-ahead was rejected since the last anchor (REJECTED_DOUBT)
 
+    @property
+    def unplaced(self) -> bool:
+        """The baseline is only assumed (a coarse start) and no start has resolved the
+        ground yet: the aid is still levelling the filter's tilt, and a body-side alarm takes
+        none of its corrections back (skid_steer_30hz seed 10: a take-back from the assumed 0
+        moved the pitch 0.37 -> 1.92 deg). A measured baseline keeps the take-back even
+        unresolved (seed 1: without it an alarm read 0.76 on ground of 0.04, +4 m)."""
+        return self.assumed and self.ground is None
+
     def settle(self, reading: SlipReading, resolution: Resolution) -> float:
         """The slip to hold after ``reading``, judged against what the INS and the wheels
         resolve at its rim speed (``resolution``)."""

@@ -235,9 +235,9 @@ class SlipModel:
             return self._start_change(change)
         if discrepant:
             return None  # not yet a change: no aid, no step test
-        # Body side: a step of the free residual.
+        # Body side: a step of the free residual (nothing taken back from an unplaced hold).
         change = self._body_side.check(s, g, turning, self.step_test, self._aided,
-                                       self.baseline)
+                                       None if self.chain.unplaced else self.baseline)
         if change is not None:
             return self._start_change(change)
         self._noise.add(t_ns, z - v)
