@@ -49,6 +49,7 @@ import numpy as np
 from slip_estimator.core.frames import C_ENU_NED, heading_to_yaw_enu
 from slip_estimator.core.planet import PLANETS, earth_rate_n, gravity_n
 from slip_estimator.core.slip import slip_class_array, slip_ratio_array
+from slip_estimator.sim.chassis import rocking_rad, surge_m
 from slip_estimator.sim.kinematics import attitude_dcm, central_diff, cumtrapz, vee_rel
 from slip_estimator.sim.scenario import WHEEL_IS_LEFT, ScenarioConfig
 
@@ -320,34 +321,6 @@ def _inertial_truth(cfg: ScenarioConfig, C: np.ndarray, v_o: np.ndarray,
     return _Inertial(f_b, omega_ib_b, g_n, omega_ie_o)
 
 
-def _rocking(cfg: ScenarioConfig, v: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Roll and pitch (rad) of the chassis rocking (``TerrainConfig.rocking_harmonics``) on the
-    fine grid: sum over harmonics m of a_m |v| sin(m phi + phase_m) along a direction in the
-    roll-pitch plane, phi the wheel rotation angle integral(|v| / r)."""
-    terr = cfg.terrain
-    rng = np.random.default_rng([cfg.truth_seed, 1])  # not the hills' and undulation's stream
-    phi = cumtrapz(np.abs(v) / cfg.rover.wheel_radius_m, h)
-    d_roll, d_pitch = np.zeros_like(v), np.zeros_like(v)
-    for mult, amp in zip(terr.rocking_harmonics, terr.rocking_rad_per_mps):
-        phase, direction = rng.uniform(0.0, 2.0 * math.pi, 2)
-        wave = amp * np.abs(v) * np.sin(mult * phi + phase)
-        d_roll += math.cos(direction) * wave
-        d_pitch += math.sin(direction) * wave
-    return d_roll, d_pitch
-
-
-def _surge(cfg: ScenarioConfig, v: np.ndarray, h: float) -> np.ndarray:
-    """Fore-aft displacement (m) of the chassis surge (``TerrainConfig.surge_harmonics``) on
-    the fine grid: sum over harmonics m of b_m |v| sin(m phi + phase_m), phi as the rocking's."""
-    terr = cfg.terrain
-    rng = np.random.default_rng([cfg.truth_seed, 2])  # not the rocking's stream
-    phi = cumtrapz(np.abs(v) / cfg.rover.wheel_radius_m, h)
-    x = np.zeros_like(v)
-    for mult, amp in zip(terr.surge_harmonics, terr.surge_m_per_mps):
-        x += amp * np.abs(v) * np.sin(mult * phi + rng.uniform(0.0, 2.0 * math.pi))
-    return x
-
-
 @dataclass(frozen=True)
 class _Truth:
     """Truth on the fine grid (module docstring, steps 1-5); odom is ENU at the start."""
@@ -386,7 +359,7 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
     C = attitude_dcm(psi, pitch, roll)  # C_base_o
     v_o = v[:, None] * C[:, :, 0]
     if cfg.terrain.rocking_harmonics:  # the body rocks about the path it keeps following
-        d_roll, d_pitch = _rocking(cfg, v, h)
+        d_roll, d_pitch = rocking_rad(cfg, v, h)
         C_path = C
         C = attitude_dcm(psi, pitch + d_pitch, roll + d_roll)
         if cfg.terrain.rocking_pivot_depth_m:
@@ -395,7 +368,7 @@ def _truth(cfg: ScenarioConfig) -> _Truth:
             p_o = p_o + swing
             v_o = v_o + central_diff(swing, h)
     if cfg.terrain.surge_harmonics:  # base_link surges along its forward axis, the rims do not
-        surge = _surge(cfg, v, h)[:, None] * C[:, :, 0]
+        surge = surge_m(cfg, v, h)[:, None] * C[:, :, 0]
         p_o = p_o + surge
         v_o = v_o + central_diff(surge, h)
     omega_eb_b = np.zeros((len(t), 3))
