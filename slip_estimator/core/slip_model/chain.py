@@ -146,17 +146,11 @@ class SlipChain:
     def settle(self, reading: SlipReading, resolution: Resolution) -> float:
         """The slip to hold after ``reading``, judged against what the INS and the wheels
         resolve at its rim speed (``resolution``)."""
-        # The reading's facts by the names the rules below use.
-        measured, previous, w = reading.slip, reading.previous, reading.w_mps
-        spread_var, spread_scale_s = resolution.spread_var_mps2, resolution.spread_span_s
-        wheel_change_mps, from_rest = resolution.wheel_change_mps, reading.from_rest
-        unmeasured, implausible_run_ahead = reading.unmeasured, reading.implausible_run_ahead
-        pitch_rad, pitch_std_rad = reading.pitch_rad, reading.pitch_std_rad
-        body_span_s, body_window_s = reading.body_span_s, reading.body_window_s
-        start_speed_var, rim_spun = reading.start_speed_var_mps2, reading.rim_spun
-        rest_offset_mps = reading.rest_offset_mps
+        measured = reading.slip  # a rejected run-ahead or a coarse start replace it below
+        # The three every rule's arithmetic reads; the other facts by their records' names.
+        previous, w, spread_var = reading.previous, reading.w_mps, resolution.spread_var_mps2
         p = self.params
-        if unmeasured:
+        if reading.unmeasured:
             self.assumed = True
         baseline = self.baseline
         if baseline is None and coarse_ins(spread_var, w):
@@ -168,18 +162,18 @@ class SlipChain:
         # Within this speed of the previous hold or of the baseline a measurement is that
         # value: the wheel-side threshold, or less where the INS over a measurement's span is
         # better than that (a good IMU resolves smaller slip differences).
-        h = min(wheel_change_mps, p.slip_continuity_sigma * math.sqrt(spread_var))
-        if implausible_run_ahead:
+        h = min(resolution.wheel_change_mps, p.slip_continuity_sigma * math.sqrt(spread_var))
+        if reading.implausible_run_ahead:
             # Back to the ground's baseline (none yet after a start in motion: the wheels');
             # after a body-side run-ahead what is held from there rests on that decision
             # (REJECTED_DOUBT). Not after a wheel-side one (the rim stepped, the body kept its
             # speed: the wheels stopped spinning), nor one beyond MAX_SLIP: no ground lets the
             # body roll at twice the rim speed (a 50-g spike's 2 m/s held the class low 10 s).
-            self.doubted = body_window_s is not None and measured >= -run_ahead.MAX_SLIP
+            self.doubted = reading.body_window_s is not None and measured >= -run_ahead.MAX_SLIP
             measured = baseline if baseline is not None else 0.0
             self.assumed = self.assumed or baseline is None
-        if from_rest and self.baseline is not None and not self.wheel_changed and \
-                (self.baseline - measured) * rest_offset_mps * w > 0.0 and \
+        if reading.from_rest and self.baseline is not None and not self.wheel_changed and \
+                (self.baseline - measured) * reading.rest_offset_mps * w > 0.0 and \
                 abs(measured - self.baseline) * abs(w) > math.sqrt(spread_var):
             # The stop's first zero-velocity update put the held slip's speed error into tilt
             # and the rest was too short for the updates to take it out again: the start's
@@ -192,18 +186,18 @@ class SlipChain:
             # the reading itself: rough seeds 2 and 6, 0.02-0.03 from their truth).
             self.chain_var, self.doubted = 0.0, False
             return self.baseline
-        if from_rest:
+        if reading.from_rest:
             # An INS the filter knows too coarse to place the ground's slip within the low
             # class (a vibrating 30-Hz consumer IMU read s = -0.34 after a stop, truth 0)
             # takes the wheels' speed as the baseline, assumed, as after a start in motion.
-            coarse = coarse_ins(start_speed_var, w)
+            coarse = coarse_ins(reading.start_speed_var_mps2, w)
             if coarse:
                 measured = 0.0
             self.baseline, self.assumed, self.chain_var = measured, coarse, 0.0
             self.doubted = self.wheel_changed = False
             self.ins_chain_var = 0.0
-            self.baseline_pitch_rad = pitch_rad
-            if math.sqrt(start_speed_var) <= ASSUMED_SLIP_STD * abs(w):
+            self.baseline_pitch_rad = reading.pitch_rad
+            if math.sqrt(reading.start_speed_var_mps2) <= ASSUMED_SLIP_STD * abs(w):
                 # Better placed than the assumed zero slip: the ground, resolved.
                 self.ground = measured
             return measured
@@ -212,32 +206,34 @@ class SlipChain:
         # the baseline) is how far from the baseline a measurement may still be that ground.
         self.chain_var += spread_var
         run, self._run = self._run, None
-        if body_window_s is not None:
-            end_s, self._body_end_s = self._body_end_s, body_window_s[1]
-            if end_s is None or body_window_s[0] - end_s > RUN_GAP_S:
+        if reading.body_window_s is not None:
+            end_s, self._body_end_s = self._body_end_s, reading.body_window_s[1]
+            if end_s is None or reading.body_window_s[0] - end_s > RUN_GAP_S:
                 run = None
         else:
             run, self._body_end_s = None, None
         if previous is not None and abs(measured - previous) * abs(w) < h:
             self._run = run
             return previous  # a false alarm: the INS confirms the held slip
-        if body_window_s is None:
+        if reading.body_window_s is None:
             self.wheel_changed = True
-        if previous is not None and body_span_s is not None and \
+        if previous is not None and reading.body_span_s is not None and \
                 abs(measured - previous) * abs(w) < p.slip_continuity_sigma * math.sqrt(
-                    spread_var * max(body_span_s, spread_scale_s) / spread_scale_s):
+                    spread_var * max(reading.body_span_s, resolution.spread_span_s)
+                    / resolution.spread_span_s):
             # A body-side change is the free INS's word alone: one within what this INS
             # drifts over the span it integrated is not resolved, and the hold stays (a
             # vibrating 30-Hz consumer IMU read a body stopping at 1.1 m/s where its free
             # speed had not moved: the aid's own acceleration jumped by 0.4 m/s^2).
             self._run = run
             return previous
-        if body_window_s is not None and previous is not None:
+        if reading.body_window_s is not None and previous is not None:
             sign = math.copysign(1.0, measured - previous)
             if run is None or run[2] != sign:
-                run = (previous, body_window_s[0], sign)
+                run = (previous, reading.body_window_s[0], sign)
             elif abs(measured - run[0]) * abs(w) < p.slip_continuity_sigma * math.sqrt(
-                    spread_var) * max(1.0, (body_window_s[1] - run[1]) / spread_scale_s):
+                    spread_var) * max(1.0, (reading.body_window_s[1] - run[1])
+                                      / resolution.spread_span_s):
                 # The ratchet: body-side changes in one direction, each beginning where the
                 # last ended, are one free-INS excursion unless together they beat what the
                 # INS drifts over their whole span; a drift that keeps its direction beyond
@@ -249,11 +245,11 @@ class SlipChain:
             self._run = run
         base_pitch = self.baseline_pitch_rad
         other_slope = base_pitch is not None and \
-            abs(pitch_rad - base_pitch) > SLOPE_RAD + _SLOPE_SIGMA * pitch_std_rad
+            abs(reading.pitch_rad - base_pitch) > SLOPE_RAD + _SLOPE_SIGMA * reading.pitch_std_rad
         # A rim-spun change from a measured ground adds no measuring span's drift to what
         # the snap judges (test17run wheels x1.4 read 0.316, truth 0.31, snapped to 0.045);
         # from an assumed one the chain's spread alone keeps a coarse INS's readings.
-        snap_var = self.chain_var - spread_var if rim_spun and self.baseline is not None \
+        snap_var = self.chain_var - spread_var if reading.rim_spun and self.baseline is not None \
             else self.chain_var
         if (baseline is not None and p.slip_baseline == 'snap' and not other_slope
                 and abs(measured - baseline) * abs(w)
@@ -263,7 +259,7 @@ class SlipChain:
             # rejected run-ahead that ends a chain here is a return to the ground's slip).
             self.chain_var, self.ins_chain_var, self._run, self.doubted = 0.0, 0.0, None, False
             return baseline
-        if not rim_spun:
+        if not reading.rim_spun:
             self.ins_chain_var += spread_var
         return measured
 
