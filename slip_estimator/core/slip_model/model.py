@@ -1,18 +1,11 @@
 """The slip model: which part of a wheel/IMU speed discrepancy is slip, and which is INS error.
 
-Physics. The wheel sample gives the rim speed ``w = r omega``; the strapdown INS gives the
-body's forward speed ``v``. Three things make them disagree, and they differ in time:
+What it assumes and where it fails: the package docstring (:mod:`slip_estimator.core.slip_model`).
+In short, slip is piecewise constant, its changes are steps of the *free residual*
+``rho = v_ins - g(s) w`` (``w = r omega`` the rim speed, ``g(s) = v / w`` of the held slip),
+and INS error is a random walk.
 
-* **slip changes are steps.** A rover's motor controllers hold the commanded wheel rate: in
-  soft sand the wheels keep turning and the body slows, downhill it runs ahead, and the IMU
-  sees that as a deceleration (acceleration) lasting 0.5-3 s. The same terrain change can also
-  show as wheels spinning up at an unchanged body speed, which the encoders see. Either way the
-  *free residual* ``rho = v_ins - g(s) w`` (``g(s) = v / w`` of the held slip) moves by
-  ``w * delta_s`` within a few seconds and stays there;
-* **INS error is a random walk** (vibration, tilt, biases; no preferred sign), measured on
-  the real log in docs/validation.md; **wheel noise is white** (quantisation, pitching).
-
-So the detector looks at the free residual of the *uncorrected* INS (the filter's own velocity
+The detector looks at the free residual of the *uncorrected* INS (the filter's own velocity
 corrections removed, so the wheel aid cannot hide a change from it) with a multi-scale step
 test (:mod:`.step_test`): the change of its 0.5-s mean over 1 s and 2.5 s
 against ``slip_change_sigma`` times the spread of that change, learned online, and never below
@@ -50,10 +43,7 @@ sample's inputs (:class:`~.records.ModelSample`) and applies what they return:
   aided samples a change continues from, and the wheel/INS consistency noise;
 * :mod:`.thresholds` -- the change thresholds from the parameters and the learned spread.
 
-Where it fails: a slip changing over tens of seconds is absorbed as INS drift; a change below
-``slip_change_fraction`` of the rim speed is not seen; turns raise the thresholds; a
-wheel-radius error is a constant slip. Decisions (:class:`AidDecision`) go to the estimator;
-only the standard library is used.
+Decisions (:class:`AidDecision`) go to the estimator; only the standard library is used.
 """
 from __future__ import annotations
 
