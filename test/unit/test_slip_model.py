@@ -284,6 +284,51 @@ def test_the_run_ahead_check_remembers_the_ground_while_a_run_ahead_is_held():
     assert check.ground is None
 
 
+def test_a_run_ahead_read_nose_down_leaves_its_ground_even_read_short():
+    """A run-ahead reading nose down leaves a ground for its return: held (the ground is the
+    baseline), or confirmed as the hold before it (read short: -0.04 against a hold of 0.05,
+    rough seed 0 at 282 s read -0.04 where the truth was -0.17), the hold before. A rise, a
+    reading at level pitch, or a grade eased forgets it."""
+    from slip_estimator.core.slip_model.run_ahead import RunAheadCheck
+    check = RunAheadCheck()
+    check.add(0, math.radians(-6.0))
+    check.held(0.05, 0.05, 0.02, measured=-0.04)  # confirmed: the hold is kept
+    assert check.left == 0.05 and check.ground is None
+    check.held(0.3, 0.05, 0.02)  # a rise
+    assert check.left is None
+    check.held(0.05, 0.05, 0.02, measured=0.01)  # below the hold, but no run-ahead
+    assert check.left is None
+    check.held(-0.2, 0.1, 0.02)  # held: the ground is the baseline
+    assert check.left == 0.02 and check.ground == 0.02
+    check.add(int(1e8), math.radians(-1.0))  # the grade eases: the return is the grade's
+    assert check.returned() == 0.02 and check.left is None
+    check.held(0.05, 0.05, 0.02, measured=-0.04)  # read on the level
+    assert check.left is None
+
+
+def test_a_rise_past_the_ground_a_run_ahead_left_is_its_return():
+    """Closed form at 0.6 m/s, a 2.5-s INS spread of 0.05 m/s, baseline 0.12 at +2 deg.
+    A run-ahead read short nose down at -18 deg (-0.04; the truth -0.21, rough seed 0 at
+    138 s) is held; the return read from it lands past the ground it left (0.24, truth 0.00)
+    by 0.072 m/s, within the chain's spread (3.5 x sqrt(2) x 0.05 = 0.25 m/s): the ground.
+    Without the ground left (another slope than the baseline's) it was held as read. A
+    partial return (below the ground) is held as read; a rise beyond the chain's spread past
+    the ground (to 0.62: a patch entered) too."""
+    from slip_estimator.core.slip_model.chain import SlipChain
+    span = Resolution(0.05 ** 2, 2.5, 0.05)
+    def rise(measured, left):
+        chain = SlipChain(Params())
+        chain.settle(SlipReading(0.12, None, 0.6, from_rest=True, pitch_rad=math.radians(2.0)),
+                     span)
+        assert chain.settle(SlipReading(-0.04, 0.12, 0.6, pitch_rad=math.radians(-18.0),
+                                        body_window_s=(10.0, 13.0)), span) == -0.04
+        return chain.settle(SlipReading(measured, -0.04, 0.6, pitch_rad=math.radians(-6.0),
+                                        body_window_s=(14.0, 17.0), left_ground=left), span)
+    assert rise(0.24, 0.12) == 0.12 and rise(0.24, None) == 0.24
+    assert rise(0.06, 0.12) == 0.06
+    assert rise(0.62, 0.12) == 0.62
+
+
 def test_run_ahead_check_judges_the_slope_ahead():
     """Pitch starting to fall at 3 deg/s: level by the pitch alone, but the smoothed rate puts
     the slope 2 s ahead beyond -2 deg, so a run-ahead of 0.3 is possible; pitching up it is

@@ -22,6 +22,15 @@ the next until a stop or a return to the ground measured after the last start:
   the holds from there are ``doubted`` (the body may have run ahead: :data:`REJECTED_DOUBT`)
   until a stop or a return to the baseline (which the rejection is itself where it ends a
   chain off the baseline on the baseline's slope);
+* **return of a run-ahead.** A run-ahead read nose down (:mod:`.run_ahead`), held or read
+  short and confirmed as the hold before it, leaves a ground (``SlipReading.left_ground``,
+  while the ground ahead is still nose-down); a body-side rise read from there past that
+  ground, within the chain's spread of it, is the body falling back onto it: the ground, which
+  ends the chain. The aided INS lags the pull, so the onset reads short (rough seed 0 at
+  138 s: -0.04, truth -0.21) and its return, read from that hold, lands past the ground by
+  the shortfall (0.24 on ground of 0.12, truth 0.00: 141 false medium samples). A partial
+  return (short of the ground) is held as read; the grade's easing ends it
+  (:meth:`~.run_ahead.RunAheadCheck.returned`);
 * **ratchet.** Body-side changes in one direction, each alarm firing as soon as the step
   test could after the last hold, are one free-INS excursion unless together they beat the
   drift of their whole span: back to the hold before them (``RUN_GAP_S``);
@@ -227,6 +236,14 @@ class SlipChain:
             # speed had not moved: the aid's own acceleration jumped by 0.4 m/s^2).
             self._run = run
             return previous
+        left = reading.left_ground
+        if left is not None and reading.body_window_s is not None and previous is not None and \
+                measured > max(previous, left) and (measured - left) * abs(w) < max(
+                    h, p.slip_continuity_sigma * math.sqrt(self.chain_var)):
+            # The return of a run-ahead read nose down, past the ground it left: read on top
+            # of an onset read short (module docstring), the ground.
+            self.returned()
+            return left
         if reading.body_window_s is not None and previous is not None:
             sign = math.copysign(1.0, measured - previous)
             if run is None or run[2] != sign:

@@ -81,6 +81,9 @@ class SlipReading:
     rim_spun: bool = False
     """the rim stepped beyond what the INS misses and the body did not follow
     (:func:`~.settling.rim_spun`): a new level held adds nothing to ``ins_chain_var``"""
+    left_ground: float | None = None
+    """the ground's slip a run-ahead read nose down left, while the ground ahead is still
+    nose-down (:attr:`~.run_ahead.RunAheadCheck.left`): a rise is its return"""
     rest_offset_mps: float = 0.0
     """for a start from rest, the forward speed the rest's zero-velocity updates left
     (:meth:`~.stop_clock.StopClock.rest_offset_mps`, 0 where none): the start's free INS

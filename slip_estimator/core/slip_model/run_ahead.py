@@ -41,6 +41,9 @@ class RunAheadCheck:
         self._t_ns: int | None = None
         self.ground: float | None = None
         """While a run-ahead read downhill is held: the ground's slip it returns to."""
+        self.left: float | None = None
+        """After a run-ahead read nose down (held, or confirmed as the hold before it), while
+        the ground ahead is still nose-down: the ground's slip the body left and returns to."""
 
     @property
     def pitch_rad(self) -> float:
@@ -61,23 +64,35 @@ class RunAheadCheck:
         """The pitch ``CREST_LOOKAHEAD_S`` ahead while pitching nose down, the pitch otherwise."""
         return self._pitch_rad + CREST_LOOKAHEAD_S * min(0.0, self._rate_rps)
 
-    def held(self, slip: float, previous: float | None, ground: float | None) -> None:
+    def held(self, slip: float, previous: float | None, ground: float | None,
+             measured: float | None = None) -> None:
         """The slip model now holds ``slip``, settled as a change from ``previous`` (None: a
-        start). A change down to a run-ahead (below the previous and below zero) read nose
-        down beyond ``PITCH_RAD`` remembers the ground it returns to: ``ground`` (the ground's
-        slip the last start measured), or the previous hold where no start measured one. A
-        hold at or above zero forgets it."""
+        start) that read ``measured`` (None: as held). A change down to a run-ahead (below
+        the previous and below zero) read nose down beyond ``PITCH_RAD`` remembers the ground
+        it returns to: ``ground`` (the ground's slip the last start measured), or the previous
+        hold where no start measured one. A hold at or above zero forgets it. A run-ahead
+        reading (below zero and below the previous hold) read nose down leaves that ground
+        (:attr:`left`) even where the previous hold was kept; any other reading forgets it."""
+        measured = slip if measured is None else measured
+        nose_down = self._pitch_rad < -PITCH_RAD
         if slip >= 0.0 or previous is None:
             self.ground = None
-        elif self.ground is None and slip < previous and self._pitch_rad < -PITCH_RAD:
+        elif self.ground is None and slip < previous and nose_down:
             self.ground = ground if ground is not None else previous
+        if previous is None or not (measured < min(previous, 0.0) and nose_down):
+            self.left = None
+        elif self.left is None:
+            self.left = self.ground if self.ground is not None else previous
 
     def returned(self) -> float | None:
         """The ground's slip where a held run-ahead is over (the ground ahead no longer
         nose-down beyond ``PITCH_RAD``: no grade pulls the body ahead), then forgotten; None
-        otherwise."""
+        otherwise. The eased grade also forgets the ground a run-ahead :attr:`left`."""
         ground = self.ground
-        if ground is None or self.pitch_ahead_rad < -PITCH_RAD:
+        if self.pitch_ahead_rad < -PITCH_RAD:
+            return None
+        self.left = None  # the grade has eased: what rises from here is not that return
+        if ground is None:
             return None
         self.ground = None
         return ground

@@ -58,10 +58,11 @@ def settle(s: ModelSample, measurement: SlipMeasurement, chain: SlipChain,
         start_speed_var_mps2=s.speed_var_mps2, body_window_s=body_window_s,
         rim_spun=anchor is not None and not anchor.body and rim_spun(anchor, measured, w,
                                                                      previous, spread_var_mps2),
+        left_ground=None if from_rest else run_ahead.left,
         rest_offset_mps=rest_offset_mps if from_rest else 0.0)
     resolution = Resolution(spread_var_mps2[-1], SCALES_S[-1], wheel_change_mps(p, w))
     held = chain.settle(reading, resolution)
-    run_ahead.held(held, None if from_rest else previous, chain.baseline)
+    run_ahead.held(held, None if from_rest else previous, chain.baseline, measured)
     return held
 
 
