@@ -42,6 +42,19 @@ named ``assumed_hold`` in /diagnostics: on ``skid_steer_30hz`` seed 3 the fused 
 two of them (0.33 kept after its sand patch ended, -0.14 read at a patch's end, on ground of
 0.07) and ended 14.11 m off against the wheels + gyro's 9.75 (9.39 with the rule).
 
+A slip change's anchor (the ungated forward-speed update at a change's onset) moves the fused
+position through its correlation with the speed it resets: on the 30-Hz consumer robot by
+0.3-2.2 m, mostly sideways, in one sample, for speed corrections of 0.01-0.3 m/s
+(``skid_steer_30hz`` seed 16 at 121.9 s: 2.2 m sideways within 0.1 s, away from the truth;
+about as many such moves went towards the truth as away). Where the INS's speed error at
+the last verdict exceeds ``ASSUMED_SLIP_STD`` of the rim speed (it places a slip no better than
+an assumed one) the published track does not take that move (:meth:`OdometryGuard.
+change_anchored`): seeds 0-19 worse than wheels + gyro 7 -> 5, their shortfall 5.1 -> 3.5 m,
+seed 16 12.76 -> 9.57 m; one right move lost (seed 3 at 201 s, after 60 s of a wrong hold
+followed: 9.39 -> 10.79 m). Settled slips' anchors keep theirs (they remove the free run's
+drift: taking every anchor's out gave seeds 4 / 9 / 19 19.78 / 6.89 / 15.86 m against
+19.06 / 6.57 / 15.10, and ungated the tactical drive 0.10 -> 0.15 m).
+
 Not resolved here (measured): the first tens of seconds after an in-motion start on a
 consumer IMU, before the spread is learned (its prior is the wheel aid's noise): the INS's
 reading is followed there. The fallback follows the rim speed, so it follows a wheel-side
@@ -57,7 +70,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from slip_estimator.core.slip import speed_ratio
-from slip_estimator.core.slip_model.chain import coarse_ins
+from slip_estimator.core.slip_model.chain import ASSUMED_SLIP_STD, coarse_ins
 from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.types import OdometryEstimate, SlipEstimate
 from slip_estimator.core.wheel_odometry import SPEED_STD_FRACTION
@@ -150,6 +163,18 @@ class OdometryGuard:
         self._last: tuple[int, np.ndarray] | None = None  # (stamp, fused position) published
         self.samples = {'moving': 0, 'fallback': 0}
         self._since_ns: int | None = None  # when the fallback under way began
+        self._moved_m = np.zeros(3)  # a change anchor's position move, not yet published
+
+    def change_anchored(self, moved_o_m: np.ndarray) -> None:
+        """A slip change's anchor (the ungated speed update at a change's onset) moved the fused
+        position by ``moved_o_m`` (odom axes, m). Where the INS's speed error at the last
+        verdict exceeds ``ASSUMED_SLIP_STD`` of the rim speed (it places a slip no better than
+        an assumed one) the published track does not take that move: it is the position's
+        correlation with the speed the anchor resets, whose error such an INS cannot tell
+        from the slip change it reads (see the module docstring)."""
+        d = self.decision
+        if d is not None and d.ins_error_mps > ASSUMED_SLIP_STD * abs(d.rim_speed_mps):
+            self._moved_m = self._moved_m + moved_o_m
 
     def wheel(self, decision: GuardDecision) -> bool:
         """The verdict at the latest evaluated wheel sample (holds until the next). A fallback
@@ -201,7 +226,9 @@ class OdometryGuard:
         where the fused speed was within 0.1: forward-speed RMSE 0.0403 -> 0.0347 m/s."""
         last, self._last = self._last, (odo.stamp_ns, odo.p_ob_o)
         d = self.decision
+        moved, self._moved_m = self._moved_m, np.zeros(3)
         if d is None or not d.fallback:
+            self._offset_m = self._offset_m - moved  # (in fallback no fused step is taken)
             if self._var_m2 == 0.0 and not self._offset_m.any():
                 return odo  # never fell back: the fused solution itself
             return self._shifted(odo)

@@ -22,6 +22,7 @@ from slip_estimator.core.history import ForwardSpeedHistory, HistoryPoint
 from slip_estimator.core.measurements import ForwardSpeed
 from slip_estimator.core.odometry_guard import OdometryGuard
 from slip_estimator.core.params import Params
+from slip_estimator.core.planet import llh_to_local_enu
 from slip_estimator.core.slip_model.aid_decision import AidDecision
 from slip_estimator.core.slip_model.step_test import SCALES_S
 from slip_estimator.core.slip_model.wheel_aid import WheelAid
@@ -116,10 +117,14 @@ class WheelUpdate:
             self._aid_update(d.z_mps, at.v_fwd_mps, d.var_mps2, excluded=not d.repair)
             return
         # A known jump of the INS error (a change, or a settled measurement): not gated.
+        llh_before = self.filter.state.llh.copy()
         correction = self.filter.anchor(self.forward.innovation(d.z_mps, at.v_fwd_mps),
                                         self.forward.jacobian(self.filter.state),
                                         self.forward.covariance(d.var_mps2))
         self.history.apply(correction, aid=not d.repair)
+        if d.held_slip is None and not d.repair:  # a change's onset, not a settled slip
+            self.odometry_guard.change_anchored(
+                llh_to_local_enu(self.filter.planet, self.filter.state.llh, llh_before))
         if taken_back is not None:  # checked against the INS TAKE_BACK_CHECK_S on
             m = self.wheel_aid.slip_model
             self.history.taken_back(runaway_scale(m.spread_var[0], self.filter.tilt_std_rad(),

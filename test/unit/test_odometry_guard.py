@@ -96,6 +96,29 @@ def test_fallback_advances_at_the_rim_speed_along_the_heading_then_resumes_witho
     assert guard.figures()[0]['odometry_fallback_share'] == 0.5
 
 
+def test_a_change_anchor_moves_the_published_track_only_where_the_ins_places_the_change():
+    """At 1 m/s the bound is ASSUMED_SLIP_STD x rim = 0.1 m/s. INS error 0.12 m/s, fused (not
+    coarse): the anchor's 1.5-m sideways move is not published, the fused steps after it are
+    (1 m north lands 1 m north of the last published point); 0.05 m/s: it is published. In
+    fallback the fused step is not taken at all, so the move is not subtracted twice."""
+    north = 0.5 * math.pi
+    for ins_error_mps, published_east_m in ((0.12, 0.0), (0.05, 1.5)):
+        guard = OdometryGuard()
+        guard.wheel(decide(_slip(1.0, 0.98), ins_error_mps ** 2, False, 3.5))
+        guard.publish(_odometry(0.0, (0.0, 0.0, 0.0), north))
+        guard.change_anchored(np.array((1.5, 0.0, 0.0)))
+        out = guard.publish(_odometry(0.1, (1.5, 0.0, 0.0), north))
+        np.testing.assert_allclose(out.p_ob_o, (published_east_m, 0.0, 0.0), atol=1e-12)
+        out = guard.publish(_odometry(1.1, (1.5, 1.0, 0.0), north))
+        np.testing.assert_allclose(out.p_ob_o, (published_east_m, 1.0, 0.0), atol=1e-12)
+    guard = OdometryGuard()
+    guard.wheel(decide(_slip(1.0, 0.0, 4), 0.5 ** 2, False, 3.5))  # fallback, rim 1 m/s
+    guard.publish(_odometry(0.0, (0.0, 0.0, 0.0), north))
+    guard.change_anchored(np.array((1.5, 0.0, 0.0)))
+    out = guard.publish(_odometry(1.0, (1.5, 0.0, 0.0), north))
+    np.testing.assert_allclose(out.p_ob_o, (0.0, 1.0, 0.0), atol=1e-12)
+
+
 def test_a_changing_rim_advances_the_fallback_but_the_twist_is_the_fused_speed():
     """Braking from 1 m/s: the rim speed's count difference (0.8 m/s) still advances the
     track (1 s north: (0, 0.8, 0)), but it lags the body, so the fused twist (0.3 m/s) and
